@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# Install what sdm_dolfinx needs on Debian 12: Debian packages (only the missing ones), then a
+# .venv with --system-site-packages and the package in editable mode. Idempotent.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+ROOT=$(pwd)
+PKGS="python3-dolfinx python3-petsc4py python3-mpi4py python3-h5py python3-matplotlib python3-pytest
+python3-gmsh python3-venv python3-pip python3-setuptools openmpi-bin"
+missing=()
+for p in $PKGS; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  SUDO=""
+  [ "$(id -u)" -eq 0 ] || SUDO="sudo"
+  echo "setup: installing Debian packages: ${missing[*]}"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${missing[@]}" >/dev/null
+fi
+if [ ! -x .venv/bin/python ]; then
+  echo "setup: creating .venv (system site packages: dolfinx, PETSc, MPI come from Debian)"
+  /usr/bin/python3 -m venv --system-site-packages .venv
+fi
+if ! (cd / && "$ROOT/.venv/bin/python" -c "import sdm_dolfinx") 2>/dev/null; then
+  .venv/bin/python -m pip install -q --no-build-isolation --no-deps -e .
+fi
+.venv/bin/python -c "import dolfinx, sdm_dolfinx; print('setup: dolfinx', dolfinx.__version__, '- sdm_dolfinx', sdm_dolfinx.__version__)"

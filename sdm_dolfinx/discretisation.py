@@ -1,0 +1,224 @@
+"""Problem + Pair -> matrices: A, L, the singular mass M = B^T C^-1 B (or B and C), bounds.
+
+Notation of the paper, section 2: W^h (basis phi_i) carries the displacement, H^h (basis
+psi_i) the velocity; B_ij = (psi_i, phi_j), C_ij = (psi_i, psi_j), M = B^T C^-1 B. All
+mass-type forms carry the density rho.
+"""
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import numpy as np
+import ufl
+from dolfinx import fem, mesh as dmesh
+
+from . import compat
+from .pairs import MASS_TREATMENTS, get_pair
+
+
+def vertex_to_dof(V, vertices):
+    """Local (unblocked) dof index of V at each local mesh vertex in ``vertices``.
+
+    Uses the element's vertex entity dofs, so it works for P1, P2 and P1+bubble alike.
+    """
+    msh = V.mesh
+    tdim = msh.topology.dim
+    msh.topology.create_connectivity(tdim, 0)
+    c2v = msh.topology.connectivity(tdim, 0)
+    num_cells = msh.topology.index_map(tdim).size_local + msh.topology.index_map(tdim).num_ghosts
+    cell_vertices = c2v.array.reshape(num_cells, -1)
+    dofs = V.dofmap.list.array.reshape(num_cells, -1)
+    nverts = msh.topology.index_map(0).size_local + msh.topology.index_map(0).num_ghosts
+    v2d = np.full(nverts, -1, dtype=np.int64)
+    layout = V.dofmap.dof_layout
+    for k in range(cell_vertices.shape[1]):
+        (ldof,) = layout.entity_dofs(0, k)
+        v2d[cell_vertices[:, k]] = dofs[:, ldof]
+    return v2d[np.asarray(vertices, dtype=np.int64)]
+
+
+def vertex_coordinates(msh, vertices):
+    """Coordinates (3, n) of local mesh vertices (via the geometry of P1/P2 meshes)."""
+    tdim = msh.topology.dim
+    msh.topology.create_connectivity(0, tdim)
+    nodes = compat.entities_to_geometry(msh, 0, np.asarray(vertices, dtype=np.int32))
+    return msh.geometry.x[nodes.reshape(-1)].T
+
+
+def owned_size(V):
+    """Number of owned entries (dofs times block size) of V's vectors on this rank."""
+    return V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+
+
+class Discretisation:
+    """The space semi-discretisation (paper eq. (3)–(5)) of a Problem with a Pair.
+
+    Args:
+        problem: a :class:`sdm_dolfinx.problem.Problem`.
+        pair: a pair name (``"P2/P1"``) or :class:`sdm_dolfinx.pairs.Pair`.
+        mass: how C is treated: ``"diagonal"`` (P0: exact), ``"lumped"`` (P1, row sums),
+            ``"consistent"`` (P1: the (U, V) block system, M never formed) or ``"standard"``
+            (H^h = W^h). ``None`` picks the pair's default.
+    """
+
+    def __init__(self, problem, pair, mass=None):
+        self.problem = problem
+        self.pair = get_pair(pair) if isinstance(pair, str) else pair
+        self.mass = mass or self.pair.default_mass()
+        if self.mass not in MASS_TREATMENTS or self.mass not in self.pair.allowed_masses():
+            raise ValueError(f"mass treatment {self.mass!r} is not available for pair {self.pair.name}; "
+                             f"choose one of {', '.join(self.pair.allowed_masses())}")
+        msh = problem.mesh
+        self.comm = msh.comm
+        cell = compat.cell_name(msh)
+        shape = tuple(problem.shape)
+        self.W = compat.function_space(msh, self.pair.w_element(cell, shape))
+        self.H = (None if self.pair.standard
+                  else compat.function_space(msh, self.pair.h_element(cell, shape)))
+        # P1 spaces for output (XDMF wants vertex fields) and nodal measures
+        self.Q1 = compat.function_space(msh, compat.element("Lagrange", cell, 1))
+        self.P1 = (self.Q1 if not shape else compat.function_space(msh, compat.element("Lagrange", cell, 1, shape)))
+        self._assemble()
+        self._constraints()
+        self._dirichlet()
+
+    # ------------------------------------------------------------------ matrices
+    def _assemble(self):
+        p = self.problem
+        W = self.W
+        u, w = ufl.TrialFunction(W), ufl.TestFunction(W)
+        rho = fem.Constant(p.mesh, PETSc.ScalarType(p.rho))
+        self.A = compat.assemble_matrix(compat.form(p.a(u, w)))
+        self.L = compat.assemble_vector(compat.form(p.l(w)))
+        self.B = self.C = self.c_lumped = None
+        if self.mass == "standard":
+            self.M = compat.assemble_matrix(compat.form(rho * ufl.inner(u, w) * ufl.dx))
+            return
+        q, r = ufl.TestFunction(self.H), ufl.TrialFunction(self.H)
+        self.B = compat.assemble_matrix(compat.form(rho * ufl.inner(u, q) * ufl.dx))   # N_H x N_W
+        self.C = compat.assemble_matrix(compat.form(rho * ufl.inner(r, q) * ufl.dx))   # N_H x N_H
+        if self.mass == "consistent":
+            self.M = None        # never formed: the integrator solves the (U, V) block system
+            return
+        # C diagonal: exact for P0 (C is diagonal), row-sum lumping for P1
+        ones = self.C.createVecRight()
+        ones.set(1.0)
+        self.c_lumped = self.C.createVecLeft()
+        self.C.mult(ones, self.c_lumped)
+        cinv = self.c_lumped.copy()
+        cinv.reciprocal()
+        Bs = self.B.copy()
+        Bs.diagonalScale(L=cinv)                  # C^-1 B
+        self.M = self.B.transposeMatMult(Bs)      # B^T C^-1 B
+        Bs.destroy()
+
+    def mass_mult(self, x, y):
+        """y = M x (also for the consistent variant, through a solve with C)."""
+        if self.M is not None:
+            self.M.mult(x, y)
+            return
+        bx = self.B.createVecLeft()
+        self.B.mult(x, bx)
+        z = self.solve_C(bx)
+        self.B.multTranspose(z, y)
+
+    def solve_C(self, b):
+        """C^-1 b with CG (C is a well-conditioned mass matrix)."""
+        if not hasattr(self, "_ksp_C"):
+            ksp = PETSc.KSP().create(self.comm)
+            ksp.setOperators(self.C)
+            ksp.setType("cg")
+            ksp.getPC().setType("jacobi")
+            ksp.setTolerances(rtol=1e-14, atol=1e-300, max_it=1000)
+            self._ksp_C = ksp
+        x = self.C.createVecRight()
+        self._ksp_C.solve(b, x)
+        if self._ksp_C.getConvergedReason() <= 0:
+            raise RuntimeError(f"solve with C failed (reason {self._ksp_C.getConvergedReason()})")
+        return x
+
+    # --------------------------------------------------------------- constraints
+    def _constraints(self):
+        """Owned constrained dofs of W (vertex dofs only, eq. (13)) and their lower bounds."""
+        p = self.problem
+        msh = p.mesh
+        verts = np.asarray(p.constraint_vertices(msh), dtype=np.int32)
+        nloc = msh.topology.index_map(0).size_local
+        verts = np.unique(verts[verts < nloc]) if verts.size else verts   # owned vertices
+        bs = self.W.dofmap.index_map_bs
+        comp = p.constraint_component or 0
+        dofs = vertex_to_dof(self.W, verts) * bs + comp
+        keep = dofs < owned_size(self.W)
+        # a vertex owned here whose dof is owned elsewhere is constrained by that rank
+        verts_all = verts
+        verts, dofs = verts_all[keep], dofs[keep]
+        order = np.argsort(dofs)
+        self.cverts, self.cdofs = verts[order], dofs[order].astype(np.int32)
+        xv = vertex_coordinates(msh, self.cverts) if self.cverts.size else np.zeros((3, 0))
+        self.cx = xv
+        self.lb = np.asarray(p.lower_bound(xv), dtype=PETSc.ScalarType).reshape(-1)
+        self.num_constraints = self.comm.allreduce(len(self.cdofs), op=MPI.SUM)
+        # lumped nodal measure at each constrained vertex (for stress = multiplier / measure)
+        qv = ufl.TestFunction(self.Q1)
+        m = compat.assemble_vector(compat.form(p.constraint_measure(qv)))
+        m.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+        with m.localForm() as ml:
+            meas = ml.array_r[vertex_to_dof(self.Q1, self.cverts)] if self.cverts.size else np.zeros(0)
+        self.cmeasure = np.array(meas)
+        self.q1_of_c = vertex_to_dof(self.Q1, self.cverts)
+
+    def _dirichlet(self):
+        p = self.problem
+        W = self.W
+        self.ddofs = np.zeros(0, dtype=np.int32)
+        self.g = fem.Function(W)        # Dirichlet values (zero elsewhere)
+        if p.dirichlet_facets is None:
+            return
+        msh = p.mesh
+        fdim = msh.topology.dim - 1
+        facets = np.asarray(p.dirichlet_facets(msh), dtype=np.int32)
+        msh.topology.create_connectivity(fdim, msh.topology.dim)
+        dofs = fem.locate_dofs_topological(W, fdim, facets)      # blocks
+        bs = W.dofmap.index_map_bs
+        dofs = (dofs[:, None] * bs + np.arange(bs)[None, :]).reshape(-1)
+        gfun = fem.Function(W)
+        gfun.interpolate(p.dirichlet_value)
+        self.ddofs = np.sort(dofs[dofs < owned_size(W)]).astype(np.int32)
+        self.g.x.array[self.ddofs] = gfun.x.array[self.ddofs]
+        self.g.x.scatter_forward()
+        if np.intersect1d(self.ddofs, self.cdofs).size:
+            # a Dirichlet dof is fixed anyway: drop it from the constraint set
+            keep = ~np.isin(self.cdofs, self.ddofs)
+            self.cverts, self.cdofs, self.lb = self.cverts[keep], self.cdofs[keep], self.lb[keep]
+            self.cmeasure, self.q1_of_c, self.cx = self.cmeasure[keep], self.q1_of_c[keep], self.cx[:, keep]
+            self.num_constraints = self.comm.allreduce(len(self.cdofs), op=MPI.SUM)
+
+    # ------------------------------------------------------------------ helpers
+    def dims(self):
+        """Global dimensions: dim W^h, dim H^h, N_g."""
+        W = self.W
+        nW = W.dofmap.index_map.size_global * W.dofmap.index_map_bs
+        nH = (nW if self.H is None else self.H.dofmap.index_map.size_global * self.H.dofmap.index_map_bs)
+        return {"dim_W": int(nW), "dim_H": int(nH), "N_g": int(self.num_constraints)}
+
+    def initial_state(self):
+        """(U0, Vbar0): interpolants of u0 and v0 in W, with the Dirichlet values imposed."""
+        p = self.problem
+        u0, v0 = fem.Function(self.W), fem.Function(self.W)
+        u0.interpolate(p.u0)
+        v0.interpolate(p.v0)
+        U, V = compat.petsc_vec(u0).copy(), compat.petsc_vec(v0).copy()
+        if self.ddofs.size:
+            U.array[self.ddofs] = self.g.x.array[self.ddofs]
+            V.array[self.ddofs] = 0.0
+        return U, V
+
+    def rigid_vector(self, component):
+        """The vector of W that represents the constant unit field in ``component``."""
+        f = fem.Function(self.W)
+        if self.problem.shape:
+            n = self.problem.shape[0]
+            f.interpolate(lambda x: np.array([np.full(x.shape[1], 1.0 if i == component else 0.0)
+                                              for i in range(n)]))
+        else:
+            f.interpolate(lambda x: np.ones(x.shape[1]))
+        return compat.petsc_vec(f).copy()

@@ -1,0 +1,159 @@
+"""Observers: probes, the CSV time series, run.json and XDMF fields.
+
+Only rank 0 writes CSV/JSON; XDMF is written collectively. Scalars are reduced over ranks.
+"""
+import json
+import os
+from pathlib import Path
+
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import numpy as np
+from dolfinx import fem
+
+from . import compat
+
+BASE_COLUMNS = ("step", "t", "energy", "kinetic", "potential", "u_probe", "lambda_probe", "n_active",
+                "newton_its")
+
+
+class PointProbe:
+    """Value of a W-function at a point, on every rank (the lowest rank owning it evaluates)."""
+
+    def __init__(self, V, point, component=None):
+        msh = V.mesh
+        self.comm = msh.comm
+        x = np.zeros((1, 3))
+        x[0, :len(point)] = point
+        self.x = x
+        cells = compat.colliding_cells(msh, compat.bounding_box_tree(msh), x).links(0)
+        nowned = msh.topology.index_map(msh.topology.dim).size_local
+        cells = cells[cells < nowned]
+        rank = self.comm.rank if len(cells) else self.comm.size
+        self.owner = self.comm.allreduce(rank, op=MPI.MIN)
+        if self.owner == self.comm.size:
+            raise ValueError(f"probe point {tuple(point)} lies outside the mesh")
+        self.cell = cells[:1]
+        self.component = component
+        self.f = fem.Function(V)
+
+    def __call__(self, vec):
+        """Evaluate the W-vector ``vec`` (owned entries) at the probe point."""
+        n = len(vec.array)
+        self.f.x.array[:n] = vec.array
+        self.f.x.scatter_forward()
+        val = 0.0
+        if self.comm.rank == self.owner:
+            v = self.f.eval(self.x, self.cell).reshape(-1)
+            val = float(v[self.component or 0])
+        return self.comm.allreduce(val, op=MPI.SUM)
+
+
+class ConstraintProbe:
+    """The constrained vertex nearest to a point: its stress lam_i / m_i (m_i the lumped measure)."""
+
+    def __init__(self, disc, point):
+        self.comm = disc.comm
+        p = np.zeros(3)
+        p[:len(point)] = point
+        d = np.linalg.norm(disc.cx.T - p[None, :], axis=1) if disc.cx.shape[1] else np.zeros(0)
+        dmin = float(d.min()) if d.size else np.inf
+        best = self.comm.allreduce((dmin, self.comm.rank), op=MPI.MINLOC)
+        self.owner = best[1]
+        self.index = int(np.argmin(d)) if (self.comm.rank == self.owner and d.size) else -1
+        x = disc.cx[:, self.index].copy() if self.index >= 0 else np.zeros(3)
+        self.vertex = self.comm.allreduce(x, op=MPI.SUM)
+        self.measure = disc.cmeasure
+
+    def __call__(self, lam):
+        val = lam[self.index] / self.measure[self.index] if self.index >= 0 else 0.0
+        return self.comm.allreduce(float(val), op=MPI.SUM)
+
+
+class CSVWriter:
+    """timeseries.csv, one complete line per step, flushed (a killed run keeps whole rows)."""
+
+    def __init__(self, path, columns, comm, append=False):
+        self.comm, self.columns = comm, tuple(columns)
+        self.fh = None
+        if comm.rank == 0:
+            self.fh = open(path, "a" if append else "w", buffering=1)
+            if not append:
+                self.fh.write(",".join(self.columns) + "\n")
+
+    def write(self, row):
+        if self.fh is not None:
+            self.fh.write(",".join(_fmt(row[c]) for c in self.columns) + "\n")
+            self.fh.flush()
+
+    def close(self):
+        if self.fh is not None:
+            self.fh.close()
+            self.fh = None
+
+
+def _fmt(v):
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    return repr(float(v))
+
+
+def write_json(path, data, comm):
+    """Atomic JSON write on rank 0 (temporary file, then rename)."""
+    if comm.rank == 0:
+        tmp = Path(str(path) + ".tmp")
+        with open(tmp, "w") as fh:
+            json.dump(data, fh, indent=2, default=_json_default)
+            fh.write("\n")
+        os.replace(tmp, path)
+    comm.Barrier()
+
+
+def _json_default(o):
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(f"not JSON serialisable: {type(o)}")
+
+
+class XDMFWriter:
+    """solution.xdmf: displacement, velocity, contact stress and active set at vertices.
+
+    Fields are written as explicit P1 interpolants, which every dolfinx version and
+    ParaView's Xdmf3 reader accept.
+    """
+
+    def __init__(self, path, disc, integrator):
+        self.disc, self.integ = disc, integrator
+        msh = disc.problem.mesh
+        self.file = compat.xdmf_file(msh.comm, path, "w")
+        self.file.write_mesh(msh)
+        self.uW = fem.Function(disc.W)
+        self.vsrc = fem.Function(disc.H if integrator.block else disc.W)
+        self.u1 = fem.Function(disc.P1, name="displacement")
+        self.v1 = fem.Function(disc.P1, name="velocity")
+        self.s1 = fem.Function(disc.Q1, name="contact_stress")
+        self.a1 = fem.Function(disc.Q1, name="active")
+
+    def write(self, U, V, lam, active, t):
+        d = self.disc
+        self.uW.x.array[:len(U.array)] = U.array
+        self.uW.x.scatter_forward()
+        self.u1.interpolate(self.uW)
+        self.vsrc.x.array[:len(V.array)] = V.array
+        self.vsrc.x.scatter_forward()
+        self.v1.interpolate(self.vsrc)
+        for f, vals in ((self.s1, lam / np.where(d.cmeasure > 0, d.cmeasure, 1.0)),
+                        (self.a1, active.astype(float))):
+            f.x.array[:] = 0.0
+            f.x.array[d.q1_of_c] = vals
+            vec = compat.petsc_vec(f)
+            vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+            vec.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+        for f in (self.u1, self.v1, self.s1, self.a1):
+            self.file.write_function(f, float(t))
+
+    def close(self):
+        self.file.close()

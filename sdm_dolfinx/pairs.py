@@ -1,0 +1,74 @@
+"""Registry of (W^h, H^h) pairs: the displacement space, the velocity space and how C is treated.
+
+A pair is pure data; :mod:`sdm_dolfinx.discretisation` turns it into matrices.
+"""
+from dataclasses import dataclass
+
+from . import compat
+
+#: how C = (psi_i, psi_j) enters M = B^T C^-1 B
+MASS_TREATMENTS = ("standard", "diagonal", "lumped", "consistent")
+
+
+@dataclass(frozen=True)
+class Pair:
+    """A discretisation pair (W^h, H^h).
+
+    Attributes:
+        name: the paper's name, e.g. ``"P2/P1"``.
+        w: ``(family, degree)`` of W^h, family ``"P+"`` meaning P1 + cubic bubble.
+        h: ``(family, degree)`` of H^h, or ``None`` when H^h = W^h (standard Galerkin).
+        well_posed: what the paper says (condition (7) proved, observed, or failing).
+    """
+    name: str
+    w: tuple
+    h: tuple
+    well_posed: str
+
+    def w_element(self, cell, shape=()):
+        family, degree = self.w
+        if family == "P+":
+            return compat.p1_bubble_element(cell, shape)
+        return compat.element("Lagrange", cell, degree, shape)
+
+    def h_element(self, cell, shape=()):
+        if self.h is None:
+            return None
+        family, degree = self.h
+        return compat.element("DG" if degree == 0 else "Lagrange", cell, degree, shape)
+
+    @property
+    def standard(self):
+        """True when H^h = W^h: the standard (consistent mass) Galerkin method."""
+        return self.h is None
+
+    def default_mass(self):
+        """The C treatment used unless asked otherwise: exact diagonal (P0), lumped (P1)."""
+        if self.standard:
+            return "standard"
+        return "diagonal" if self.h[1] == 0 else "lumped"
+
+    def allowed_masses(self):
+        if self.standard:
+            return ("standard",)
+        if self.h[1] == 0:
+            return ("diagonal",)
+        return ("lumped", "consistent")
+
+
+PAIRS = {p.name: p for p in [
+    Pair("P1+/P0", ("P+", 1), ("P", 0), "proved (Lemma 2)"),
+    Pair("P1/P0", ("P", 1), ("P", 0), "no: dim H >= dim W - N_g"),
+    Pair("P1/P1", ("P", 1), None, "no: standard Galerkin, Ker(B) = {0}"),
+    Pair("P1+/P1", ("P+", 1), ("P", 1), "observed (no proof in the paper)"),
+    Pair("P2/P1", ("P", 2), ("P", 1), "observed (no proof in the paper)"),
+    Pair("P2/P2", ("P", 2), None, "no: standard Galerkin, Ker(B) = {0}"),
+]}
+
+
+def get_pair(name):
+    """The registered pair called ``name``; ValueError listing the choices otherwise."""
+    try:
+        return PAIRS[name]
+    except KeyError:
+        raise ValueError(f"unknown pair {name!r}; choose one of {', '.join(PAIRS)}") from None
