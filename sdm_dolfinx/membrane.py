@@ -72,3 +72,37 @@ def Problem(N=10, f=-0.6, u0=0.02, g=0.02, obstacle=0.0, diagonal="right", probe
         units={"all": "dimensionless (paper section 4)"},
     )
 
+
+
+#: defaults of the command line (paper section 4)
+DEFAULTS = {"pair": "P1+/P0", "scheme": "midpoint", "dt": 1e-3, "T": 0.8}
+
+
+def add_arguments(parser):
+    """The membrane's own command-line options."""
+    g = parser.add_argument_group("membrane (paper section 4; dimensionless)")
+    g.add_argument("--N", type=int, default=10, help="squares per side of the unit square, h = 1/N (default 10)")
+    g.add_argument("--diagonal", choices=sorted(DIAGONALS), default="right",
+                   help="triangle pattern; left_right is GetFEM's 'regular simplices' of the paper (default right)")
+    g.add_argument("--f", type=float, default=-0.6, help="load f (default -0.6)")
+    g.add_argument("--u0", type=float, default=0.02, help="initial displacement (default 0.02)")
+    g.add_argument("--g", type=float, default=0.02, help="Dirichlet value on the boundary (default 0.02)")
+    g.add_argument("--obstacle", type=float, default=0.0, help="obstacle height (default 0)")
+    g.add_argument("--no-obstacle", action="store_true", help="remove the constraint")
+    g.add_argument("--probe", type=float, nargs=2, default=(0.5, 0.5), metavar=("X", "Y"),
+                   help="probe point (default 0.5 0.5)")
+
+
+def check_arguments(args):
+    """Messages for out-of-range membrane options (empty list when all is well)."""
+    errors = []
+    if args.N < 1:
+        errors.append(f"--N must be >= 1 (got {args.N})")
+    if not all(0.0 <= c <= 1.0 for c in args.probe):
+        errors.append(f"--probe must lie in the unit square (got {tuple(args.probe)})")
+    return errors
+
+
+def problem_from_args(args, comm):
+    return Problem(N=args.N, f=args.f, u0=args.u0, g=args.g, obstacle=args.obstacle, diagonal=args.diagonal,
+                   probe=tuple(args.probe), comm=comm, with_obstacle=not args.no_obstacle)
