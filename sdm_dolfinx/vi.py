@@ -26,12 +26,30 @@ class VIError(RuntimeError):
     """A step's variational inequality was not solved."""
 
 
-def _set_options(prefix, options):
-    opts = PETSc.Options()
-    for k, v in (options or {}).items():
-        key = prefix + k
-        if not opts.hasName(key):          # the command line wins over the defaults
-            opts.setValue(key, v)
+class _options:
+    """Context: extra PETSc options under ``prefix`` for the setFromOptions calls inside it.
+
+    The defaults are set on the objects themselves, so that they never leak into the global
+    options database and from one solver to the next; options given on the command line
+    (``-sdm_...``) are in the database and override them.
+    """
+
+    def __init__(self, prefix, options):
+        self.prefix, self.options, self.added = prefix, dict(options or {}), []
+
+    def __enter__(self):
+        opts = PETSc.Options()
+        for k, v in self.options.items():
+            key = self.prefix + k
+            if not opts.hasName(key):
+                opts.setValue(key, v)
+                self.added.append(key)
+        return self
+
+    def __exit__(self, *exc):
+        opts = PETSc.Options()
+        for key in self.added:
+            opts.delValue(key)
 
 
 class _ReducedOperator:
@@ -87,7 +105,7 @@ class SemismoothNewton:
     """
 
     def __init__(self, K, cdofs, lb, symmetric_positive=True, linear="cg-factor", prefix="sdm_",
-                 options=None, rtol=1e-10, max_it=60):
+                 options=None, rtol=1e-10, max_it=500):
         if linear not in LINEAR_STRATEGIES:
             raise ValueError(f"unknown linear strategy {linear!r}; choose one of {', '.join(LINEAR_STRATEGIES)}")
         self.K, self.comm = K, K.getComm().tompi4py()
@@ -101,26 +119,23 @@ class SemismoothNewton:
         diag = K.getDiagonal()
         dsum = self.comm.allreduce(float(np.sum(diag.array[self.cdofs])), op=MPI.SUM)
         nc = self.comm.allreduce(len(self.cdofs), op=MPI.SUM)
-        self.r = dsum / max(nc, 1)      # the Alart–Curnier parameter r (mean diagonal)
+        self.r = dsum / nc if nc else 1.0   # the Alart–Curnier parameter r (mean diagonal)
         self.total_linear_its = 0
-        defaults = {"ksp_rtol": 1e-12, "ksp_atol": 1e-50, "ksp_max_it": 5000,
-                    "factor_pc_factor_mat_solver_type": "mumps"}
-        if linear == "amg":
-            defaults.update({"pc_type": "hypre", "pc_hypre_type": "boomeramg"})
-        defaults.update(options or {})
-        _set_options(prefix, defaults)
-        self._setup()
+        with _options(prefix, options):
+            self._setup()
 
     def _setup(self):
         K, n = self.K, self.K.getLocalSize()[0]
         ksp = PETSc.KSP().create(self.comm)
         ksp.setOptionsPrefix(self.prefix)
+        ksp.setTolerances(rtol=1e-12, atol=1e-50, max_it=5000)
         if self.linear == "cg-factor":
             kf = PETSc.KSP().create(self.comm)
             kf.setOptionsPrefix(self.prefix + "factor_")
             kf.setOperators(K)
             kf.setType("preonly")
             kf.getPC().setType("cholesky" if self.spd else "lu")
+            kf.getPC().setFactorSolverType("mumps")
             kf.setFromOptions()
             kf.setUp()
             self.ksp_factor = kf
@@ -135,11 +150,14 @@ class SemismoothNewton:
             pc = ksp.getPC()
             pc.setType("python")
             pc.setPythonContext(_ReducedPC(kf, self.mask))
+        elif self.linear == "lu":
+            ksp.setType("preonly")
+            ksp.getPC().setType("cholesky" if self.spd else "lu")
+            ksp.getPC().setFactorSolverType("mumps")
         else:
-            ksp.setType("preonly" if self.linear == "lu" else "cg")
-            if self.linear == "lu":
-                ksp.getPC().setType("cholesky" if self.spd else "lu")
-                ksp.getPC().setFactorSolverType("mumps")
+            ksp.setType("cg" if self.spd else "gmres")
+            ksp.getPC().setType("hypre")
+            ksp.getPC().setHYPREType("boomeramg")
         ksp.setFromOptions()
         self.ksp = ksp
 
@@ -166,6 +184,15 @@ class SemismoothNewton:
     def solve(self, b, x):
         """Solve the LCP for right-hand side b; x holds the initial guess and the result.
 
+        Each iteration exchanges the infeasible constraints between the active and the
+        inactive set (active with lam < 0: release; inactive with x < lb: add), which is the
+        primal-dual active set / semi-smooth Newton step. For matrices that are not
+        M-matrices (P2 vertex–edge coupling) full exchanges may cycle; as in Júdice & Pires'
+        block principal pivoting, when the number of infeasibilities has not decreased for
+        3 iterations only the infeasible constraint of largest global index is exchanged
+        (Murty's rule), which terminates for any P-matrix (our Schur complement on the
+        constrained dofs is SPD).
+
         Returns:
             dict with ``its`` (Newton iterations) and ``n_active``.
         """
@@ -175,30 +202,37 @@ class SemismoothNewton:
         tol_x = tol_lam / self.r
         rhs = b.duplicate()
         res = b.duplicate()
-        self.active = self.active.copy()
+        active = self.active.copy()
+        gidx = self.K.getOwnershipRange()[0] + c           # global indices, for Murty's rule
+        best, patience = np.inf, 3
         for it in range(1, self.max_it + 1):
             # Newton step: x_A = lb_A, K_II x_I = b_I - K_IA lb_A
             self.mask[:] = False
-            self.mask[c[self.active]] = True
+            self.mask[c[active]] = True
             b.copy(rhs)
-            rhs.array[c[self.active]] = lb[self.active]
-            x.array[c[self.active]] = lb[self.active]
+            rhs.array[c[active]] = lb[active]
+            x.array[c[active]] = lb[active]
             self._linear_solve(rhs, x)
             # multipliers lam = (K x - b) on the active set, 0 elsewhere
             self.K.mult(x, res)
             res.axpy(-1.0, b)
-            lam = np.where(self.active, res.array[c], 0.0)
-            new_active = (lam + self.r * (lb - x.array[c])) > tol_lam
-            changed = self.comm.allreduce(int(np.count_nonzero(new_active != self.active)), op=MPI.SUM)
-            self.lam, self.active = lam, new_active
-            if changed == 0:
-                viol = self.comm.allreduce(float(np.max(lb - x.array[c], initial=0.0)), op=MPI.MAX)
-                if viol > 10 * tol_x + 1e-14 * scale / self.r:
-                    raise VIError(f"constraint violated by {viol:.3e} after convergence")
-                n_active = self.comm.allreduce(int(np.count_nonzero(self.active)), op=MPI.SUM)
+            lam = np.where(active, res.array[c], 0.0)
+            infeasible = np.where(active, lam < -tol_lam, x.array[c] < lb - tol_x)
+            n_inf = self.comm.allreduce(int(np.count_nonzero(infeasible)), op=MPI.SUM)
+            self.lam, self.active = lam, active
+            if n_inf == 0:
+                n_active = self.comm.allreduce(int(np.count_nonzero(active)), op=MPI.SUM)
                 return {"its": it, "n_active": n_active}
+            if n_inf < best:
+                best, patience = n_inf, 3
+            elif patience > 0:
+                patience -= 1
+            else:                       # Murty: exchange one constraint only
+                gmax = self.comm.allreduce(int(np.max(gidx[infeasible], initial=-1)), op=MPI.MAX)
+                infeasible = gidx == gmax
+            active = active ^ infeasible
         raise VIError(f"semi-smooth Newton did not converge in {self.max_it} iterations "
-                      f"(active set still changing: {changed} entries)")
+                      f"({n_inf} constraints still infeasible)")
 
     def destroy(self):
         self.ksp.destroy()
@@ -222,14 +256,14 @@ class SnesVI:
         self.rtol = rtol
         self.lam = np.zeros(len(self.cdofs))
         self.total_linear_its = 0
-        defaults = {"snes_linesearch_type": "basic", "ksp_type": "preonly",
-                    "pc_type": "cholesky" if symmetric_positive else "lu",
-                    "pc_factor_mat_solver_type": "mumps", "snes_max_it": max_it}
-        defaults.update(options or {})
-        _set_options(prefix, defaults)
         snes = PETSc.SNES().create(self.comm)
         snes.setOptionsPrefix(prefix)
         snes.setType(snes_type)
+        snes.setTolerances(max_it=max_it)
+        ksp = snes.getKSP()
+        ksp.setType("preonly")
+        ksp.getPC().setType("cholesky" if symmetric_positive else "lu")
+        ksp.getPC().setFactorSolverType("mumps")
         self.F = K.createVecLeft()
         self._b = None
         snes.setFunction(self._residual, self.F)
@@ -240,7 +274,9 @@ class SnesVI:
         xl.array[self.cdofs] = self.lb
         self.xl, self.xu = xl, xu
         snes.setVariableBounds(xl, xu)
-        snes.setFromOptions()
+        # a piecewise-linear VI wants a full step (petsc4py 3.18 has no getLineSearch)
+        with _options(prefix, {"snes_linesearch_type": "basic", **(options or {})}):
+            snes.setFromOptions()
         self.snes = snes
         self.work = K.createVecRight()
 

@@ -1,0 +1,156 @@
+"""Membrane over an obstacle (paper sections 3-4): the physics the method promises.
+
+Every tolerance below is justified where it is used. The runs are short (N = 10, the
+paper's h = 0.1) so that the file stays fast on 1 and 2 ranks.
+"""
+from mpi4py import MPI
+
+import numpy as np
+import pytest
+
+from sdm_dolfinx import PAIRS, StepError, get_pair, membrane, simulate
+
+COMM = MPI.COMM_WORLD
+
+
+def max_rel_dev(E):
+    return float(np.max(np.abs(E - E[0])) / abs(E[0]))
+
+
+def variants():
+    """Every pair with every C treatment it allows."""
+    return [(p, m) for p in PAIRS for m in get_pair(p).allowed_masses()]
+
+
+@pytest.mark.parametrize("pair,mass", variants())
+def test_energy_conserved_without_obstacle(pair, mass):
+    """Midpoint on the linear problem conserves J^h exactly; only the linear solver's
+    relative tolerance (1e-12) and round-off remain, so 1e-9 relative over 30 steps."""
+    r = simulate(membrane.Problem(N=6, with_obstacle=False), pair=pair, mass=mass, dt=1e-2, T=0.3)
+    E = r.timeseries["energy"]
+    assert r.timeseries["kinetic"].max() > 1e-3 * abs(E[0])     # something moves
+    assert max_rel_dev(E) < 1e-9
+
+
+@pytest.mark.parametrize("pair", ["P1+/P0", "P2/P1"])
+def test_well_posed_pairs_conserve_energy_as_dt_decreases(pair):
+    """Paper Figs. 2 and 6: with a well-posed pair the energy error shrinks with dt and is
+    small at dt = 1e-3 (the paper's curves are flat to the eye: we ask < 3 %)."""
+    dev = {dt: max_rel_dev(simulate(membrane.Problem(N=10), pair=pair, dt=dt, T=1.0).timeseries["energy"])
+           for dt in (1e-2, 1e-3)}
+    assert dev[1e-3] < dev[1e-2]
+    assert dev[1e-3] < 0.03
+
+
+@pytest.mark.parametrize("pair", ["P1/P1", "P1/P0"])
+def test_ill_posed_pairs_blow_up(pair):
+    """Paper Figs. 3-4: after the first impact the energy grows by a large factor (we ask
+    more than 3x), and more at the smaller time step."""
+    growth = {dt: simulate(membrane.Problem(N=10), pair=pair, dt=dt, T=1.0).timeseries["energy"].max() / 0.012
+              for dt in (1e-2, 1e-3)}
+    assert growth[1e-2] > 3.0
+    assert growth[1e-3] > growth[1e-2]
+
+
+@pytest.mark.parametrize("pair", ["P1+/P0", "P1/P0", "P2/P1"])
+def test_backward_euler_energy_never_increases(pair):
+    """Backward Euler dissipates: J^h(n+1) <= J^h(n) up to round-off (1e-12 of J^h(0))."""
+    E = simulate(membrane.Problem(N=10), pair=pair, scheme="backward-euler", dt=5e-3, T=0.8).timeseries["energy"]
+    assert np.all(np.diff(E) <= 1e-12 * abs(E[0]))
+    assert E[-1] < E[0]                                  # and it does lose energy at impact
+
+
+def test_constraint_holds_on_the_constrained_iterate():
+    """U^{n+1/2} (midpoint) and U^{n+1} (backward Euler) satisfy u >= 0 at every vertex at
+    every step to round-off; the midpoint's U^{n+1} = 2 U^{n+1/2} - U^n may dip below by
+    O(dt): we record the dip and check it shrinks roughly in proportion to dt."""
+    dips = {}
+    for dt in (1e-2, 1e-3):
+        r = simulate(membrane.Problem(N=10), pair="P1+/P0", dt=dt, T=0.5)
+        assert r.gap_imposed.min() >= -1e-14
+        assert r.info["constraint_imposed_on"] == "U^{n+1/2}"
+        dips[dt] = -r.gap_end.min()
+    print(f"midpoint U^(n+1) dips below the obstacle by {dips[1e-2]:.3e} (dt 1e-2), {dips[1e-3]:.3e} (dt 1e-3)")
+    assert 0 < dips[1e-3] < 0.3 * dips[1e-2]            # O(dt): a factor 10 in dt gives ~10x
+    r = simulate(membrane.Problem(N=10), pair="P1+/P0", scheme="backward-euler", dt=1e-2, T=0.5)
+    assert r.gap_end.min() >= -1e-14 and r.gap_imposed.min() >= -1e-14
+
+
+def test_contact_happens_and_stress_is_nonnegative():
+    """The obstacle is hit (u = 0.02 - 0.3 t^2 reaches 0 at t = 0.258) and the contact
+    stress at the centre is a reaction: >= 0, positive during contact."""
+    ts = simulate(membrane.Problem(N=10), pair="P1+/P0", dt=1e-3, T=0.4).timeseries
+    assert ts["n_active"].max() > 0
+    assert ts["lambda_probe"].min() >= 0 and ts["lambda_probe"].max() > 0
+    first = ts["t"][np.argmax(ts["n_active"] > 0)]
+    assert 0.2 < first < 0.3
+
+
+@pytest.mark.parametrize("pair", ["P1+/P0", "P2/P1"])
+def test_free_fall_of_the_centre_matches_closed_form(pair):
+    """Before contact and before the boundary's influence reaches the centre (wave speed
+    1, distance 0.5), u(centre, t) = 0.02 - 0.3 t^2. The discrete error must shrink
+    under refinement (h halved twice at fixed dt = 1e-3: at least 2x each time)."""
+    errs = []
+    for N in (8, 16, 32):
+        ts = simulate(membrane.Problem(N=N), pair=pair, dt=1e-3, T=0.25).timeseries
+        errs.append(np.max(np.abs(ts["u_probe"] - (0.02 - 0.3 * ts["t"] ** 2))))
+    assert errs[1] < errs[0] / 2 and errs[2] < errs[1] / 2
+    assert errs[2] < 0.01 * 0.02                          # 1 % of the initial height
+
+
+def test_lumped_and_consistent_C_converge_together():
+    """P1 velocity: lumped C and consistent C (the (U, V) block system) are two
+    discretisations of the same problem; refining h and dt together (dt/h fixed), the
+    centre displacement curves up to the release of the first contact get closer."""
+    diffs = []
+    for N in (8, 16, 32):
+        dt = 0.125 / N
+        a = simulate(membrane.Problem(N=N), pair="P2/P1", dt=dt, T=0.45, mass="lumped").timeseries["u_probe"]
+        b = simulate(membrane.Problem(N=N), pair="P2/P1", dt=dt, T=0.45, mass="consistent").timeseries["u_probe"]
+        diffs.append(np.max(np.abs(a - b)))
+    print("max |u_lumped - u_consistent| at the centre:", diffs)
+    assert diffs[2] < diffs[1] < diffs[0]
+
+
+def test_vi_solvers_agree():
+    """The semi-smooth Newton (with each linear strategy) and SNES vinewtonrsls solve the
+    same LCP: same time series to 1e-8 relative (solver tolerances 1e-10..1e-12)."""
+    ref = simulate(membrane.Problem(N=8), pair="P1+/P0", dt=2e-3, T=0.4).timeseries
+    for kw in ({"linear": "lu"}, {"linear": "amg"}, {"vi_solver": "vinewtonrsls"}):
+        ts = simulate(membrane.Problem(N=8), pair="P1+/P0", dt=2e-3, T=0.4, **kw).timeseries
+        for c in ("energy", "u_probe"):
+            assert np.allclose(ts[c], ref[c], rtol=1e-8, atol=1e-8 * np.abs(ref[c]).max()), (kw, c)
+
+
+@pytest.mark.skipif(COMM.size == 1, reason="compares a 2-rank run with a serial one: needs mpirun -n 2")
+def test_one_and_two_ranks_agree():
+    """The distributed run equals a serial run of the same problem to ~1e-10 relative."""
+    kw = dict(pair="P2/P1", dt=2e-3, T=0.6)
+    par = simulate(membrane.Problem(N=10, comm=COMM), **kw).timeseries
+    ser = simulate(membrane.Problem(N=10, comm=MPI.COMM_SELF), **kw).timeseries if COMM.rank == 0 else None
+    ser = COMM.bcast(ser, root=0)
+    for c in ("energy", "kinetic", "potential", "u_probe", "lambda_probe", "n_active"):
+        scale = max(np.abs(ser[c]).max(), 1e-300)
+        assert np.max(np.abs(par[c] - ser[c])) <= 1e-10 * scale, c
+
+
+def test_solver_failure_names_step_and_time(mpi_tmp_path):
+    """An injected failure (one Newton iteration allowed) raises with step and time, and
+    the outputs up to the last good step stay readable."""
+    import json
+    from sdm_dolfinx import vi
+    old = vi.SemismoothNewton.__init__.__defaults__
+    try:
+        d = list(old)
+        d[-1] = 1                                          # max_it = 1
+        vi.SemismoothNewton.__init__.__defaults__ = tuple(d)
+        with pytest.raises(StepError, match=r"step \d+ \(t = [0-9.e-]+\)"):
+            simulate(membrane.Problem(N=8), pair="P1+/P0", dt=1e-2, T=0.5, out=mpi_tmp_path)
+    finally:
+        vi.SemismoothNewton.__init__.__defaults__ = old
+    if COMM.rank == 0:
+        info = json.loads((mpi_tmp_path / "run.json").read_text())
+        assert info["status"] == "failed" and "step" in info["error"]
+        rows = (mpi_tmp_path / "timeseries.csv").read_text().splitlines()
+        assert len(rows) >= 2 and all(len(r.split(",")) == 9 for r in rows)
