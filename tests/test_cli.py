@@ -1,0 +1,85 @@
+"""The command line: outputs of a run, and bad input refused in one line with status 2."""
+import csv
+import json
+import os
+import subprocess
+import sys
+
+from mpi4py import MPI
+
+import pytest
+
+from sdm_dolfinx import cli
+
+COMM = MPI.COMM_WORLD
+HEADER = "step,t,energy,kinetic,potential,u_probe,lambda_probe,n_active,newton_its"
+
+
+def test_run_writes_csv_json_and_xdmf(mpi_tmp_path):
+    out = mpi_tmp_path / "run"
+    status = cli.main(["membrane", "--N", "6", "--dt", "0.01", "--T", "0.3", "--out", str(out), "--quiet",
+                       "--write-every", "5"])
+    assert status == 0
+    if COMM.rank == 0:
+        lines = (out / "timeseries.csv").read_text().splitlines()
+        assert lines[0] == HEADER
+        rows = list(csv.DictReader(lines))
+        assert [int(r["step"]) for r in rows] == list(range(31))          # row 0 = initial state
+        info = json.loads((out / "run.json").read_text())
+        assert info["status"] == "finished" and info["ranks"] == COMM.size
+        assert info["dim_W"] == 7 * 7 + 2 * 36 and info["dim_H"] == 2 * 36   # P1+ / P0 on 6x6 squares
+        assert "dolfinx" in info["versions"] and info["wall_time"] > 0
+        assert (out / "solution.xdmf").stat().st_size > 0 and (out / "solution.h5").stat().st_size > 0
+    # a finished run is not overwritten without --overwrite
+    assert cli.main(["membrane", "--out", str(out), "--quiet"]) == 2
+
+
+BAD = [
+    (["membrane", "--pair", "P3/P0"], "invalid choice"),
+    (["membrane", "--scheme", "leapfrog"], "invalid choice"),
+    (["membrane", "--dt", "0"], "positive"),
+    (["membrane", "--dt=-1e-3"], "positive"),
+    (["membrane", "--dt", "-1"], "positive"),
+    (["membrane", "--dt", "nan"], "positive"),
+    (["membrane", "--dt", "abc"], "not a number"),
+    (["membrane", "--dt", "0.1", "--T", "0.05"], "--T"),
+    (["membrane", "--N", "0"], "--N"),
+    (["membrane", "--N", "2.5"], "invalid int"),
+    (["membrane", "--pair", "P1+/P0", "--mass", "lumped"], "not available"),
+    (["membrane", "--write-every", "0"], "--write-every"),
+    (["membrane", "--probe", "2", "0.5"], "--probe"),
+    (["membrane", "--bogus"], "unrecognised"),
+    (["nosuchproblem"], "invalid choice"),
+]
+
+
+@pytest.mark.parametrize("argv,message", BAD)
+def test_bad_input_is_refused(argv, message, mpi_tmp_path, capsys):
+    out = mpi_tmp_path / "never"
+    assert cli.main(argv + ["--out", str(out)] if argv[0] == "membrane" else argv) == 2
+    err = capsys.readouterr().err
+    if COMM.rank == 0:
+        assert message in err and len(err.strip().splitlines()) == 1, err
+    assert not out.exists()                                  # nothing written
+
+
+def test_unwritable_output_folder(mpi_tmp_path, capsys):
+    blocker = mpi_tmp_path / "a_file"
+    if COMM.rank == 0:
+        blocker.write_text("not a folder")
+    COMM.Barrier()
+    assert cli.main(["membrane", "--out", str(blocker / "sub"), "--quiet"]) == 2
+    if COMM.rank == 0:
+        assert "cannot write" in capsys.readouterr().err
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="starts its own python process: serial only")
+def test_no_traceback_from_a_real_process(tmp_path):
+    env = dict(os.environ)
+    p = subprocess.run([sys.executable, "-m", "sdm_dolfinx", "membrane", "--dt", "-1", "--out", str(tmp_path / "x")],
+                       capture_output=True, text=True, env=env, timeout=120)
+    assert p.returncode == 2
+    assert "Traceback" not in p.stderr and len(p.stderr.strip().splitlines()) == 1
+    h = subprocess.run([sys.executable, "-m", "sdm_dolfinx", "membrane", "--help"], capture_output=True, text=True,
+                       timeout=120)
+    assert h.returncode == 0 and "--pair" in h.stdout and "--dt" in h.stdout
