@@ -11,20 +11,22 @@ import json
 import math
 import os
 import sys
+import tomllib
 from pathlib import Path
 
 from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import membrane
+from .checkpoint import CheckpointError
 from .integrator import SCHEMES, StepError
 from .pairs import MASS_TREATMENTS, PAIRS, get_pair
-from .simulate import num_steps, simulate
+from .simulate import Interrupted, num_steps, simulate
 from .vi import LINEAR_STRATEGIES, VI_SOLVERS
 
 PROBLEMS = {"membrane": membrane}
 #: commands that are not a run: name -> module with ``main(argv) -> exit status``
-SUBCOMMANDS = {}
+SUBCOMMANDS = {"inspect": ".wellposed"}
 
 
 class UsageError(Exception):
@@ -70,6 +72,14 @@ def add_run_arguments(p, defaults):
                    help="write the XDMF fields every K steps (default 10)")
     o.add_argument("--overwrite", action="store_true", help="replace a finished run in --out")
     o.add_argument("--quiet", action="store_true", help="no progress lines")
+    r = p.add_argument_group("configuration and restart")
+    r.add_argument("--config", type=Path, default=None, metavar="FILE",
+                   help="TOML file of option = value pairs (names as here, without --); the command line overrides it")
+    r.add_argument("--checkpoint-every", type=int, default=None, metavar="K",
+                   help="write DIR/checkpoint.npz every K steps (a SIGINT/SIGTERM always writes one)")
+    r.add_argument("--restart", type=Path, default=None, metavar="DIR",
+                   help="continue the run in DIR from its checkpoint with the parameters of DIR/run.json "
+                        "(same number of ranks)")
     p.epilog = ("PETSc options of the step solver can be added as -sdm_<option> (semi-smooth Newton: "
                 "-sdm_ksp_*, -sdm_factor_pc_factor_mat_solver_type; SNES: -sdm_snes_*).")
 
@@ -78,13 +88,15 @@ def build_parser():
     parser = _Parser(prog="python -m sdm_dolfinx",
                      description="The singular dynamic method for dynamic contact (Renard 2010) on dolfinx.")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    subparsers = {}
     for name, mod in PROBLEMS.items():
         p = sub.add_parser(name, help=(mod.__doc__ or "").strip().splitlines()[0],
                            description=(mod.__doc__ or "").strip(),
                            formatter_class=argparse.RawDescriptionHelpFormatter)
         mod.add_arguments(p)
         add_run_arguments(p, mod.DEFAULTS)
-    return parser
+        subparsers[name] = p
+    return parser, subparsers
 
 
 def _check_run(args, mod):
@@ -93,6 +105,8 @@ def _check_run(args, mod):
         errors.append(f"--T ({args.T}) must be >= --dt ({args.dt})")
     if args.write_every < 1:
         errors.append(f"--write-every must be >= 1 (got {args.write_every})")
+    if args.checkpoint_every is not None and args.checkpoint_every < 1:
+        errors.append(f"--checkpoint-every must be >= 1 (got {args.checkpoint_every})")
     pair = get_pair(args.pair)
     if args.mass is not None and args.mass not in pair.allowed_masses():
         errors.append(f"--mass {args.mass} is not available for {pair.name}; choose {', '.join(pair.allowed_masses())}")
@@ -110,13 +124,16 @@ def _check_out(out, overwrite):
             status = "unreadable"
         if status == "finished":
             raise UsageError(f"{out} already holds a finished run; use --overwrite or another --out")
+        if status == "interrupted":
+            raise UsageError(f"{out} holds an interrupted run; continue it with --restart {out}, "
+                             f"or use --overwrite")
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out {out} exists and is not a folder")
     probe_dir = out
     while not probe_dir.exists():
         probe_dir = probe_dir.parent
-    if not os.access(probe_dir, os.W_OK | os.X_OK):
-        raise UsageError(f"cannot write to {out} ({probe_dir} is not writable)")
+    if not probe_dir.is_dir() or not os.access(probe_dir, os.W_OK | os.X_OK):
+        raise UsageError(f"cannot write to {out} ({probe_dir} is not a writable folder)")
 
 
 def _petsc_overrides(extra):
@@ -135,25 +152,120 @@ def _petsc_overrides(extra):
         i += 1
 
 
+def _config_value(path, action, key, value):
+    """Check one TOML value against the option's argparse action; returns the value to use."""
+    def bad(expected):
+        return UsageError(f"{path}: key '{key}': expected {expected}, got {value!r}")
+    if isinstance(action, argparse._StoreTrueAction):
+        if not isinstance(value, bool):
+            raise bad("true or false")
+        return value
+    if action.nargs == 2:
+        if not (isinstance(value, list) and len(value) == 2
+                and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)):
+            raise bad("a list of 2 numbers")
+        return [float(v) for v in value]
+    if action.type is int:
+        if not isinstance(value, int) or isinstance(value, bool):
+            raise bad("an integer")
+        return value
+    if action.type in (float, _positive_float):
+        if not isinstance(value, (int, float)) or isinstance(value, bool):
+            raise bad("a number")
+        try:
+            return action.type(str(value))
+        except argparse.ArgumentTypeError as e:
+            raise UsageError(f"{path}: key '{key}': {e}") from None
+    if action.type is Path:
+        if not isinstance(value, str):
+            raise bad("a path (string)")
+        return Path(value)
+    if not isinstance(value, str):
+        raise bad("a string" + (f" among {', '.join(map(str, action.choices))}" if action.choices else ""))
+    if action.choices is not None and value not in action.choices:
+        raise UsageError(f"{path}: key '{key}': {value!r} is not one of {', '.join(map(str, action.choices))}")
+    return value
+
+
+def load_config(path, subparser, command):
+    """Option defaults from a TOML file, every key and value checked."""
+    try:
+        with open(path, "rb") as fh:
+            data = tomllib.load(fh)
+    except FileNotFoundError:
+        raise UsageError(f"config file {path} not found") from None
+    except OSError as e:
+        raise UsageError(f"cannot read config file {path}: {e.strerror}") from None
+    except tomllib.TOMLDecodeError as e:
+        raise UsageError(f"{path}: invalid TOML: {e}") from None
+    problem = data.pop("problem", command)
+    if problem != command:
+        raise UsageError(f"{path}: key 'problem' is {problem!r} but the command is {command!r}")
+    actions = {a.dest: a for a in subparser._actions if a.dest not in ("help", "config", "restart")}
+    defaults = {}
+    for key, value in data.items():
+        dest = key.replace("-", "_")
+        if dest not in actions:
+            raise UsageError(f"{path}: unknown key '{key}'; allowed keys: problem, "
+                             f"{', '.join(sorted(a.replace('_', '-') for a in actions))}")
+        defaults[dest] = _config_value(path, actions[dest], key, value)
+    return defaults
+
+
+def _restart_args(args, subparser, command):
+    """The namespace of the run being continued (from DIR/run.json)."""
+    run = args.restart / "run.json"
+    try:
+        saved = json.loads(run.read_text())
+    except FileNotFoundError:
+        raise UsageError(f"--restart {args.restart}: no run.json there") from None
+    except (OSError, ValueError) as e:
+        raise UsageError(f"--restart {args.restart}: cannot read run.json ({e})") from None
+    if saved.get("command_name") != command:
+        raise UsageError(f"--restart {args.restart}: that folder holds a {saved.get('command_name')!r} run, "
+                         f"not {command!r}")
+    if saved.get("status") == "finished":
+        raise UsageError(f"--restart {args.restart}: that run is already finished")
+    ns = subparser.parse_args([])
+    for k, v in saved["cli_args"].items():
+        setattr(ns, k, Path(v) if k in ("out", "config") and v is not None else v)
+    ns.command, ns.restart, ns.out, ns.quiet = command, args.restart, args.restart, args.quiet
+    ns.checkpoint_every = args.checkpoint_every or ns.checkpoint_every
+    return ns
+
+
+def _parse(argv, parser, subparsers):
+    args, extra = parser.parse_known_args(argv)
+    if args.command is None:
+        raise UsageError(f"{parser.prog}: error: choose a command: {', '.join(PROBLEMS)}")
+    sub = subparsers[args.command]
+    if args.config is not None:
+        sub.set_defaults(**load_config(args.config, sub, args.command))
+        args, extra = parser.parse_known_args(argv)
+    if args.restart is not None:
+        args = _restart_args(args, sub, args.command)
+    return args, extra
+
+
 def main(argv=None):
+    """Entry point; returns the exit status (0 ok, 1 failed run, 2 bad input, 128+sig interrupted)."""
     comm = MPI.COMM_WORLD
     argv = sys.argv[1:] if argv is None else list(argv)
     if argv and argv[0] in SUBCOMMANDS:
         import importlib
         return importlib.import_module(SUBCOMMANDS[argv[0]], __package__).main(argv[1:])
-    parser = build_parser()
+    parser, subparsers = build_parser()
     try:
         if not argv or argv[0] in ("-h", "--help"):
             if comm.rank == 0:
                 parser.print_help()
             return 0 if argv else 2
-        args, extra = parser.parse_known_args(argv)
-        if args.command is None:
-            raise UsageError(f"{parser.prog}: error: choose a command: {', '.join(PROBLEMS)}")
+        args, extra = _parse(argv, parser, subparsers)
         mod = PROBLEMS[args.command]
         _check_run(args, mod)
         args.out = args.out or Path("output") / args.command
-        _check_out(args.out, args.overwrite)
+        if args.restart is None:
+            _check_out(args.out, args.overwrite)
         _petsc_overrides(extra)
     except UsageError as e:
         if comm.rank == 0:
@@ -162,20 +274,48 @@ def main(argv=None):
                 msg = f"{parser.prog} {argv[0] if argv else ''}: error: {msg}"
             print(msg, file=sys.stderr, flush=True)
         return 2
+    try:
+        return _run(args, argv, mod, parser, comm)
+    except Exception as e:          # an internal error: say it in one line, take every rank down
+        print(f"{parser.prog} {args.command}: internal error on rank {comm.rank}: {type(e).__name__}: {e}",
+              file=sys.stderr, flush=True)
+        if os.environ.get("SDM_DEBUG"):
+            raise
+        if comm.size > 1:
+            comm.Abort(1)
+        return 1
+
+
+def _run(args, argv, mod, parser, comm):
     progress = not args.quiet
     problem = mod.problem_from_args(args, comm)
+    prog = f"{parser.prog} {args.command}"
     if progress and comm.rank == 0:
+        what = f"restarting {args.restart}" if args.restart else f"-> {args.out}"
         print(f"sdm_dolfinx {args.command}: pair {args.pair}, {args.scheme}, dt = {args.dt}, T = {args.T} "
-              f"({num_steps(args.T, args.dt)} steps) on {comm.size} rank(s) -> {args.out}", flush=True)
+              f"({num_steps(args.T, args.dt)} steps) on {comm.size} rank(s) {what}", flush=True)
+    cli_args = {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()
+                if k not in ("restart", "overwrite", "quiet", "command")}
     try:
         result = simulate(problem, pair=args.pair, scheme=args.scheme, dt=args.dt, T=args.T, mass=args.mass,
                           vi_solver=args.vi_solver, linear=args.linear, out=args.out, write_every=args.write_every,
-                          progress=progress, extra_info={"command": " ".join(["python -m sdm_dolfinx"] + argv)})
+                          progress=progress, checkpoint_every=args.checkpoint_every,
+                          restart=args.restart is not None, handle_signals=True,
+                          extra_info={"command": " ".join(["python -m sdm_dolfinx"] + argv),
+                                      "command_name": args.command, "cli_args": cli_args})
     except StepError as e:
         if comm.rank == 0:
-            print(f"{parser.prog} {args.command}: error: {e}; outputs up to the last good step are in {args.out}",
+            print(f"{prog}: error: {e}; outputs up to the last good step are in {args.out}",
                   file=sys.stderr, flush=True)
         return 1
+    except CheckpointError as e:
+        if comm.rank == 0:
+            print(f"{prog}: error: {e}", file=sys.stderr, flush=True)
+        return 2
+    except Interrupted as e:
+        if comm.rank == 0:
+            print(f"{prog}: {e}", file=sys.stderr, flush=True)
+        return 128 + int(e.signum)
     if progress and comm.rank == 0:
         i = result.info
         print(f"done in {i['wall_time']:.1f} s: dim W = {i['dim_W']}, dim H = {i['dim_H']}, N_g = {i['N_g']}; "

@@ -125,11 +125,12 @@ class XDMFWriter:
     ParaView's Xdmf3 reader accept.
     """
 
-    def __init__(self, path, disc, integrator):
+    def __init__(self, path, disc, integrator, append=False):
         self.disc, self.integ = disc, integrator
         msh = disc.problem.mesh
-        self.file = compat.xdmf_file(msh.comm, path, "w")
-        self.file.write_mesh(msh)
+        self.file = compat.xdmf_file(msh.comm, path, "a" if append else "w")
+        if not append:
+            self.file.write_mesh(msh)
         self.uW = fem.Function(disc.W)
         self.vsrc = fem.Function(disc.H if integrator.block else disc.W)
         self.u1 = fem.Function(disc.P1, name="displacement")

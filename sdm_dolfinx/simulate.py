@@ -1,4 +1,5 @@
 """The time loop: Problem + Pair + scheme -> time series (and files, if asked)."""
+import signal
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -7,10 +8,18 @@ from mpi4py import MPI
 
 import numpy as np
 
-from . import compat
+from . import checkpoint, compat
 from .discretisation import Discretisation
 from .integrator import CONSTRAINED_ITERATE, Integrator, StepError
 from .output import BASE_COLUMNS, ConstraintProbe, CSVWriter, PointProbe, XDMFWriter, write_json
+
+
+class Interrupted(RuntimeError):
+    """The run stopped at the end of a step on request (SIGINT/SIGTERM), after a checkpoint."""
+
+    def __init__(self, message, signum):
+        super().__init__(message)
+        self.signum = signum
 
 
 @dataclass
@@ -24,6 +33,7 @@ class Result:
         gap_end: per step, min over constraints of (U^{n+1} - bound).
         U, V: final state vectors (PETSc, owned entries); V is Vbar in W, or V in H for the
             consistent block variant.
+        discretisation: the :class:`Discretisation` (spaces, matrices).
     """
     timeseries: dict
     info: dict
@@ -39,9 +49,28 @@ def num_steps(T, dt):
     return int(np.floor(T / dt + 1e-9))
 
 
+class _StopFlag:
+    """SIGINT/SIGTERM set a flag; the loop stops at the end of the step (all ranks agree)."""
+
+    def __init__(self, enabled):
+        self.signum = 0
+        self.old = {}
+        if enabled:
+            for s in (signal.SIGINT, signal.SIGTERM):
+                self.old[s] = signal.signal(s, self._handler)
+
+    def _handler(self, signum, frame):
+        self.signum = signum
+
+    def restore(self):
+        for s, h in self.old.items():
+            signal.signal(s, h)
+
+
 def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=None, vi_solver="ssn",
              linear="cg-factor", out=None, write_every=None, progress=False, petsc_options=None,
-             extra_info=None):
+             extra_info=None, checkpoint_every=None, restart=False, handle_signals=False, on_step=None,
+             constraint_tol=1e-8):
     """Run ``problem`` with ``pair`` and ``scheme`` from t = 0 to T.
 
     Args:
@@ -52,14 +81,24 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
         mass: C treatment (``None``: the pair's default).
         vi_solver, linear, petsc_options: the step solver (see :mod:`sdm_dolfinx.vi`).
         out: output folder (``timeseries.csv``, ``run.json``, ``solution.xdmf``) or None.
-        write_every: XDMF output every K steps (None: only with ``out``, every 10 steps).
+        write_every: XDMF output every K steps (default 10 when ``out`` is given).
         progress: print a progress line (rank 0) every few seconds.
+        checkpoint_every: write ``out/checkpoint.npz`` every K steps (and at the end).
+        restart: continue the run in ``out`` from its checkpoint (same parameters and ranks).
+        handle_signals: on SIGINT/SIGTERM stop after the current step, checkpoint, raise
+            :class:`Interrupted`.
+        on_step: ``f(step, row)`` called after every step; returning True requests a stop
+            (as a signal would).
+        constraint_tol: a constrained iterate below its bound by more than this (relative
+            to the largest |bound|, or absolute when the bounds are 0) stops the run.
 
     Returns:
         :class:`Result`.
 
     Raises:
         StepError: a step failed (the outputs up to the last good step stay readable).
+        Interrupted: a stop was requested; a checkpoint was written first.
+        checkpoint.CheckpointError: ``restart`` without a matching checkpoint.
     """
     wall0 = time.perf_counter()
     comm = problem.mesh.comm
@@ -75,14 +114,32 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
         V = disc.solve_C(bv)
     probe = PointProbe(disc.W, problem.probe, problem.constraint_component)
     cprobe = ConstraintProbe(disc, problem.probe)
-    info = {"problem": problem.describe(), "pair": disc.pair.name, "mass": disc.mass, "scheme": scheme,
-            "dt": dt, "T": nsteps * dt, "steps": nsteps, "vi_solver": vi_solver, "linear": linear,
-            **disc.dims(), "ranks": comm.size, "versions": compat.versions(),
+    fingerprint = checkpoint.mesh_fingerprint(problem.mesh)
+    identity = {"problem": problem.describe(), "pair": disc.pair.name, "mass": disc.mass, "scheme": scheme,
+                "dt": dt, "vi_solver": vi_solver, "linear": linear, "ranks": comm.size, "mesh": fingerprint}
+    info = {**identity, "T": nsteps * dt, "steps": nsteps, **disc.dims(), "versions": compat.versions(),
             "displacement_reported": "U^{n+1} (end of step)",
             "constraint_imposed_on": CONSTRAINED_ITERATE[scheme],
             "lambda_probe": {"vertex": cprobe.vertex[:2].tolist(),
                              "definition": "nodal multiplier / lumped nodal measure (>= 0: obstacle pushes)"},
             "status": "running", **(extra_info or {})}
+    series = {c: np.zeros(nsteps + 1) for c in columns}
+    gap_imposed, gap_end = np.zeros(nsteps), np.zeros(nsteps)
+    lam = np.zeros(len(disc.cdofs))
+    first = 0
+    gidx = integ.K.getOwnershipRange()[0] + disc.cdofs      # global indices of the constraints
+    if restart:
+        if out is None:
+            raise checkpoint.CheckpointError("restart needs the output folder of the run")
+        Ug, Vg, act, meta = checkpoint.load(out, comm)
+        _check_identity(meta["identity"], identity)
+        if meta["step"] > nsteps:
+            raise checkpoint.CheckpointError(f"the checkpoint is at step {meta['step']}, past T = {nsteps * dt}")
+        checkpoint.scatter(Ug, U)
+        checkpoint.scatter(Vg, V)
+        integ.solver.active = np.isin(gidx, act)
+        first = meta["step"]
+        info["restarted_from_step"] = first
     writer = xdmf = None
     if out is not None:
         out = Path(out)
@@ -90,13 +147,18 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
             out.mkdir(parents=True, exist_ok=True)
         comm.Barrier()
         write_json(out / "run.json", info, comm)
-        writer = CSVWriter(out / "timeseries.csv", columns, comm)
-        xdmf = XDMFWriter(out / "solution.xdmf", disc, integ)
+        if restart:
+            rows = checkpoint.truncate_csv(out / "timeseries.csv", first, comm)
+            for line in rows[1:]:
+                vals = line.split(",")
+                for c, v in zip(columns, vals):
+                    series[c][int(vals[0])] = float(v)
+            checkpoint.truncate_xdmf(out / "solution.xdmf", first * dt, comm)
+        writer = CSVWriter(out / "timeseries.csv", columns, comm, append=restart)
+        xdmf = XDMFWriter(out / "solution.xdmf", disc, integ, append=restart)
         write_every = write_every or 10
-    series = {c: np.zeros(nsteps + 1) for c in columns}
-    gap_imposed, gap_end = np.zeros(nsteps), np.zeros(nsteps)
-    lam = np.zeros(len(disc.cdofs))
-    active = np.zeros(len(disc.cdofs), dtype=bool)
+    scale = max(comm.allreduce(float(np.max(np.abs(disc.lb), initial=0.0)), op=MPI.MAX), 1.0)
+    stop = _StopFlag(handle_signals)
 
     def record(n, t, its, n_active):
         kin, pot = integ.energies(U, V)
@@ -106,39 +168,62 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
             row["contact_force"] = comm.allreduce(float(np.sum(lam)), op=MPI.SUM)
         if "momentum_y" in columns:
             row["momentum_y"] = integ.momentum(V, problem.momentum_component)
+        if not np.isfinite(row["energy"]):
+            raise StepError(f"step {n} (t = {t:.6g}): the energy is not finite ({row['energy']})")
         for c in columns:
             series[c][n] = row[c]
         if writer is not None:
             writer.write(row)
-        if not np.isfinite(row["energy"]):
-            raise StepError(f"step {n} (t = {t:.6g}): the energy is not finite ({row['energy']})")
         return row
 
+    def save_checkpoint(n):
+        meta = {"identity": identity, "step": n, "t": n * dt}
+        checkpoint.save(out, comm, U, V, gidx[integ.solver.active], meta)
+
     try:
-        record(0, 0.0, 0, 0)
-        if xdmf is not None:
-            xdmf.write(U, V, lam, active, 0.0)
+        if not restart:
+            record(0, 0.0, 0, 0)
+            if xdmf is not None:
+                xdmf.write(U, V, lam, lam > 0, 0.0)
         last_print = time.perf_counter()
-        for n in range(nsteps):
+        for n in range(first, nsteps):
             t = n * dt
             info_step = integ.step(U, V, n, t)
             lam = integ.lam.copy()
-            active = lam > 0
             gap_imposed[n], gap_end[n] = info_step["gap_imposed"], info_step["gap_end"]
+            if gap_imposed[n] < -constraint_tol * scale:
+                raise StepError(f"step {n + 1} (t = {(n + 1) * dt:.6g}): the constraint is violated by "
+                                f"{-gap_imposed[n]:.3e} on the constrained iterate")
             row = record(n + 1, (n + 1) * dt, info_step["its"], info_step["n_active"])
             if xdmf is not None and ((n + 1) % write_every == 0 or n + 1 == nsteps):
-                xdmf.write(U, V, lam, active, (n + 1) * dt)
+                xdmf.write(U, V, lam, lam > 0, (n + 1) * dt)
             if progress and comm.rank == 0 and (time.perf_counter() - last_print > 5 or n + 1 == nsteps):
                 last_print = time.perf_counter()
                 print(f"  step {n + 1}/{nsteps}  t = {(n + 1) * dt:.4g}  energy = {row['energy']:.6g}  "
                       f"active = {row['n_active']}  newton = {row['newton_its']}  "
                       f"[{last_print - wall0:.1f} s]", flush=True)
+            requested = bool(on_step(n + 1, row)) if on_step is not None else False
+            signum = comm.allreduce(max(stop.signum, signal.SIGTERM if requested else 0), op=MPI.MAX)
+            if out is not None and checkpoint_every and ((n + 1) % checkpoint_every == 0 or n + 1 == nsteps
+                                                         or signum):
+                save_checkpoint(n + 1)
+            if signum and n + 1 < nsteps:
+                msg = f"interrupted after step {n + 1} (t = {(n + 1) * dt:.6g})"
+                if out is not None:
+                    if not checkpoint_every:
+                        save_checkpoint(n + 1)
+                    msg += f"; checkpoint written, continue with --restart {out}"
+                info.update(status="interrupted", interrupted_at_step=n + 1, wall_time=time.perf_counter() - wall0)
+                if out is not None:
+                    write_json(out / "run.json", info, comm)
+                raise Interrupted(msg, signum)
     except StepError as e:
         info.update(status="failed", error=str(e), wall_time=time.perf_counter() - wall0)
         if out is not None:
             write_json(out / "run.json", info, comm)
         raise
     finally:
+        stop.restore()
         if writer is not None:
             writer.close()
         if xdmf is not None:
@@ -146,9 +231,20 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
     info.update(status="finished", wall_time=time.perf_counter() - wall0, setup_time=setup_time,
                 newton_its_total=int(series["newton_its"].sum()),
                 linear_its_total=int(integ.solver.total_linear_its),
-                min_gap_imposed=float(gap_imposed.min(initial=np.inf)),
-                min_gap_end=float(gap_end.min(initial=np.inf)))
+                min_gap_imposed=float(gap_imposed[first:].min(initial=np.inf)),
+                min_gap_end=float(gap_end[first:].min(initial=np.inf)))
     if out is not None:
         write_json(out / "run.json", info, comm)
     integ.destroy()
     return Result(series, info, gap_imposed, gap_end, U, V, disc)
+
+
+def _check_identity(saved, now):
+    """A checkpoint continues only the run that wrote it."""
+    for key in ("problem", "pair", "mass", "scheme", "dt", "vi_solver", "linear", "ranks"):
+        if saved.get(key) != now.get(key):
+            raise checkpoint.CheckpointError(
+                f"the checkpoint was written with {key} = {saved.get(key)!r}, this run has {now.get(key)!r}"
+                + (" (restart on the same number of ranks)" if key == "ranks" else ""))
+    if not checkpoint.same_fingerprint(saved["mesh"], now["mesh"]):
+        raise checkpoint.CheckpointError("the checkpoint was written on a different mesh")
