@@ -200,8 +200,7 @@ class SemismoothNewton:
         scale = max(b.norm(PETSc.NormType.NORM_INFINITY), 1e-300)
         tol_lam = self.rtol * scale
         tol_x = tol_lam / self.r
-        rhs = b.duplicate()
-        res = b.duplicate()
+        rhs, res, xa = b.duplicate(), b.duplicate(), b.duplicate()
         active = self.active.copy()
         gidx = self.K.getOwnershipRange()[0] + c           # global indices, for Murty's rule
         best, patience = np.inf, 3
@@ -209,7 +208,11 @@ class SemismoothNewton:
             # Newton step: x_A = lb_A, K_II x_I = b_I - K_IA lb_A
             self.mask[:] = False
             self.mask[c[active]] = True
-            b.copy(rhs)
+            # the operator zeroes the active columns: move K_{:,A} lb_A to the right-hand side
+            xa.set(0.0)
+            xa.array[c[active]] = lb[active]
+            self.K.mult(xa, rhs)
+            rhs.aypx(-1.0, b)
             rhs.array[c[active]] = lb[active]
             x.array[c[active]] = lb[active]
             self._linear_solve(rhs, x)
