@@ -17,14 +17,14 @@ from pathlib import Path
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import membrane
+from . import disc, membrane
 from .checkpoint import CheckpointError
 from .integrator import SCHEMES, StepError
 from .pairs import MASS_TREATMENTS, PAIRS, get_pair
 from .simulate import Interrupted, num_steps, simulate
 from .vi import LINEAR_STRATEGIES, VI_SOLVERS
 
-PROBLEMS = {"membrane": membrane}
+PROBLEMS = {"membrane": membrane, "disc": disc}
 #: commands that are not a run: name -> module with ``main(argv) -> exit status``
 SUBCOMMANDS = {"inspect": ".wellposed"}
 

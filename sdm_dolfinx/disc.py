@@ -1,0 +1,174 @@
+"""A plane-strain elastic disc falling on a flat rigid foundation (paper section 5).
+
+Linear elasticity (Lamé lambda, mu) in plane strain, density rho, gravity g downward,
+frictionless unilateral contact (19) with the foundation y = 0 at the boundary vertices
+of the potential contact zone. Units: mm, N, s, tonne (so stresses in N/mm^2 = MPa,
+densities in t/mm^3, energies in N mm = mJ, all per mm of thickness). Defaults are those
+of the paper's original program (Figures 14-16, Table 2): radius 20 mm, point A (the
+lowest point) 10 mm above the foundation, rho = 1e-6 t/mm^3, lambda = 300 N/mm^2,
+mu = 150 N/mm^2, g = 9810 mm/s^2, initial velocity -1000 mm/s, T = 0.02 s. (Table 1 of
+the paper mixes units; these are the consistent values.)
+"""
+from mpi4py import MPI
+
+import numpy as np
+import ufl
+from dolfinx import fem, mesh as dmesh
+
+from . import compat, problem as _problem
+from .disc_mesh import ALGORITHM, LEVELS, LOWER, make_mesh
+
+#: the potential contact zones: the lower half circle (y <= centre) or the whole boundary
+CONTACT_ZONES = ("lower", "all")
+
+#: the unit of every parameter and time-series column (for run.json; --help states them too)
+UNITS = {"level": "-", "h": "mm (gmsh mesh size)", "radius": "mm", "centre": "mm",
+         "height": "mm (initial height of the lowest point A above the foundation y = 0)",
+         "rho": "t/mm^3", "lame_lambda": "N/mm^2", "lame_mu": "N/mm^2", "gravity": "mm/s^2 (downward)",
+         "v0": "mm/s (vertical, whole disc; < 0 downward)", "mass": "t per mm of thickness (rho pi R^2)",
+         "t": "s", "dt": "s", "T": "s",
+         "energy": "N mm = mJ per mm of thickness (kinetic + elastic + gravity, 0 at rest at t = 0)",
+         "kinetic": "N mm", "potential": "N mm (elastic energy minus the work of gravity)",
+         "u_probe": "mm (vertical displacement of A)",
+         "lambda_probe": "N/mm^2 (contact stress at A: nodal multiplier / lumped boundary length; >= 0 "
+                         "compressive)",
+         "contact_force": "N per mm of thickness (sum of the nodal multipliers)",
+         "momentum_y": "t mm/s = N s per mm of thickness (e_y^T M Vbar)"}
+
+
+def sigma(u, lame_lambda, lame_mu):
+    """Plane-strain Hooke's law (16): sigma = lambda tr(eps) I + 2 mu eps."""
+    eps = ufl.sym(ufl.grad(u))
+    return lame_lambda * ufl.tr(eps) * ufl.Identity(len(u)) + 2.0 * lame_mu * eps
+
+
+def Problem(level=1, h=None, radius=20.0, height=10.0, rho=1e-6, lame_lambda=300.0, lame_mu=150.0,
+            gravity=9810.0, v0=-1000.0, contact_zone="lower", with_contact=True, comm=MPI.COMM_WORLD):
+    """The paper's falling disc.
+
+    Args:
+        level: named mesh level (:data:`sdm_dolfinx.disc_mesh.LEVELS`), used when h is None.
+        h: gmsh mesh size in mm (overrides ``level``).
+        radius: disc radius (mm).
+        height: initial height of the lowest point A above the foundation y = 0 (mm).
+        rho: density (t/mm^3).
+        lame_lambda, lame_mu: Lamé coefficients (N/mm^2).
+        gravity: gravitational acceleration, downward (mm/s^2).
+        v0: initial vertical velocity of the whole disc (mm/s, negative = downward).
+        contact_zone: ``"lower"`` (boundary vertices with y <= centre) or ``"all"``.
+        with_contact: False removes the foundation (free flight, for conservation checks).
+        comm: the communicator the mesh lives on.
+    """
+    if contact_zone not in CONTACT_ZONES:
+        raise ValueError(f"unknown contact zone {contact_zone!r}; choose one of {', '.join(CONTACT_ZONES)}")
+    level = level if h is None else None        # an explicit h is not a named level
+    h = float(LEVELS[level] if h is None else h)
+    cy = radius + height
+    msh, ft = make_mesh(h, radius=radius, centre=(0.0, cy), comm=comm)
+    tdim = msh.topology.dim
+    # vertices on the lower half circle: tolerance relative to the radius (gmsh puts the
+    # two equator points exactly at y = cy)
+    tol = 1e-8 * radius
+
+    def contact_vertices(m):
+        if not with_contact:
+            return np.zeros(0, dtype=np.int32)
+        m.topology.create_connectivity(tdim - 1, tdim)
+        if contact_zone == "all":
+            return dmesh.locate_entities_boundary(m, 0, lambda x: np.full(x.shape[1], True))
+        return dmesh.locate_entities_boundary(m, 0, lambda x: x[1] <= cy + tol)
+
+    ds = ufl.Measure("ds", domain=msh, subdomain_data=ft)
+    ds_c = ds if contact_zone == "all" else ds(LOWER)
+    g = ufl.as_vector((0.0, -gravity))
+
+    return _problem.Problem(
+        name="disc", mesh=msh, shape=(2,), rho=rho,
+        a=lambda u, w: ufl.inner(sigma(u, lame_lambda, lame_mu), ufl.sym(ufl.grad(w))) * ufl.dx,
+        l=lambda w: rho * ufl.inner(g, w) * ufl.dx,
+        u0=lambda x: np.zeros((2, x.shape[1])),
+        v0=lambda x: np.vstack([np.zeros(x.shape[1]), np.full(x.shape[1], v0)]),
+        constraint_vertices=contact_vertices,
+        # foundation y = 0: a vertex at height y must keep y + u_y >= 0
+        lower_bound=lambda x: -x[1],
+        constraint_component=1,
+        # lumped length of the contact boundary at each vertex: stress = lambda_i / |Gamma_i|
+        constraint_measure=lambda q: q * ds_c,
+        dirichlet_facets=None,
+        probe=(0.0, height),
+        extra_columns=("contact_force", "momentum_y"),
+        momentum_component=1,
+        parameters={"level": level, "h": h, "radius": radius,
+                    "height": height, "centre": [0.0, cy], "rho": rho, "lame_lambda": lame_lambda,
+                    "lame_mu": lame_mu, "gravity": gravity, "v0": v0, "contact_zone": contact_zone,
+                    "contact_nodes": "vertices", "with_contact": with_contact, "plane": "strain",
+                    "gmsh_algorithm": ALGORITHM, "geometry_degree": 2,
+                    "mass": rho * np.pi * radius ** 2},
+        units=dict(UNITS),
+    )
+
+
+def total_mass(problem):
+    """rho |Omega| of the mesh (t per mm of thickness): the discrete mass e^T M e."""
+    m = fem.assemble_scalar(compat.form(problem.rho * ufl.dx(domain=problem.mesh)))
+    return problem.mesh.comm.allreduce(m, op=MPI.SUM)
+
+
+#: defaults of the command line (paper section 5)
+DEFAULTS = {"pair": "P2/P1", "scheme": "midpoint", "dt": 1e-4, "T": 0.02}
+
+
+def add_arguments(parser):
+    """The disc's own command-line options (units: mm, N, s, tonne)."""
+    g = parser.add_argument_group("disc (paper section 5; units mm, N, s, tonne: --dt and --T in s)")
+    g.add_argument("--level", type=int, default=1, choices=sorted(LEVELS),
+                   help="mesh level; P2 dofs close to the paper's Table 2 (622, 2782, 11306, 45706, 126892, "
+                        "511386) (default 1)")
+    g.add_argument("--h", type=float, default=None, help="gmsh mesh size in mm (overrides --level)")
+    g.add_argument("--radius", type=float, default=20.0, help="disc radius in mm (default 20)")
+    g.add_argument("--height", type=float, default=10.0,
+                   help="initial height of the lowest point A above the foundation, in mm (default 10)")
+    g.add_argument("--rho", type=float, default=1e-6, help="density in t/mm^3 (default 1e-6)")
+    g.add_argument("--lame-lambda", type=float, default=300.0, help="Lamé lambda in N/mm^2 (default 300)")
+    g.add_argument("--lame-mu", type=float, default=150.0, help="Lamé mu in N/mm^2 (default 150)")
+    g.add_argument("--gravity", type=float, default=9810.0,
+                   help="gravitational acceleration (downward) in mm/s^2 (default 9810)")
+    g.add_argument("--v0", type=float, default=-1000.0,
+                   help="initial vertical velocity of the disc in mm/s, negative downward (default -1000)")
+    g.add_argument("--contact-zone", choices=CONTACT_ZONES, default="lower",
+                   help="boundary vertices that may touch: the lower half circle or all (default lower)")
+    g.add_argument("--no-contact", action="store_true", help="remove the foundation (free flight)")
+
+
+def check_arguments(args):
+    """Messages for out-of-range disc options (empty list when all is well)."""
+    errors = []
+    finite = {"--radius": args.radius, "--height": args.height, "--rho": args.rho,
+              "--lame-lambda": args.lame_lambda, "--lame-mu": args.lame_mu, "--gravity": args.gravity,
+              "--v0": args.v0}
+    if args.h is not None:
+        finite["--h"] = args.h
+    bad = [k for k, v in finite.items() if not np.isfinite(v)]
+    errors += [f"{k} must be a finite number" for k in bad]
+    if bad:
+        return errors
+    if args.h is not None and not 0 < args.h <= args.radius:
+        errors.append(f"--h must be in (0, radius] mm (got {args.h})")
+    if args.radius <= 0:
+        errors.append(f"--radius must be > 0 mm (got {args.radius})")
+    if args.height < 0:
+        errors.append(f"--height must be >= 0 mm (got {args.height})")
+    if args.rho <= 0:
+        errors.append(f"--rho must be > 0 t/mm^3 (got {args.rho})")
+    if args.lame_mu <= 0:
+        errors.append(f"--lame-mu must be > 0 N/mm^2 (got {args.lame_mu})")
+    if args.lame_lambda + args.lame_mu <= 0:
+        errors.append(f"--lame-lambda + --lame-mu must be > 0 in plane strain (got {args.lame_lambda} + "
+                      f"{args.lame_mu})")
+    return errors
+
+
+def problem_from_args(args, comm):
+    return Problem(level=args.level, h=args.h, radius=args.radius, height=args.height, rho=args.rho,
+                   lame_lambda=args.lame_lambda, lame_mu=args.lame_mu, gravity=args.gravity, v0=args.v0,
+                   contact_zone=args.contact_zone, with_contact=not args.no_contact, comm=comm)

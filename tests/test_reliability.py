@@ -1,0 +1,190 @@
+"""Long runs lose nothing, bad input is refused clearly, failures are loud (issue 5)."""
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+from mpi4py import MPI
+
+import numpy as np
+import pytest
+
+from sdm_dolfinx import cli, membrane, simulate
+from sdm_dolfinx.checkpoint import CheckpointError
+
+COMM = MPI.COMM_WORLD
+
+
+def read_csv(path):
+    return np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+
+
+def _interrupted_then_restarted(make_problem, out, stop_at, **kw):
+    with pytest.raises(Exception) as e:
+        simulate(make_problem(), out=out, checkpoint_every=7, on_step=lambda n, row: n == stop_at, **kw)
+    assert type(e.value).__name__ == "Interrupted"
+    info = json.loads((out / "run.json").read_text()) if COMM.rank == 0 else {}
+    assert COMM.bcast(info.get("status"), root=0) == "interrupted"
+    return simulate(make_problem(), out=out, checkpoint_every=7, restart=True, **kw)
+
+
+@pytest.mark.parametrize("pair,mass", [("P1+/P0", None), ("P2/P1", "consistent")])
+def test_restart_continues_the_membrane_exactly(pair, mass, mpi_tmp_path):
+    """Stopped at step 23 (checkpoint at 23, since a stop always writes one) and restarted:
+    the same CSV as an uninterrupted run, row for row; the same XDMF time steps."""
+    kw = dict(pair=pair, mass=mass, dt=2e-3, T=0.4, write_every=5)
+    make = lambda: membrane.Problem(N=8)                                  # noqa: E731
+    simulate(make(), out=mpi_tmp_path / "ref", **kw)
+    _interrupted_then_restarted(make, mpi_tmp_path / "cut", 23, **kw)
+    if COMM.rank == 0:
+        a, b = read_csv(mpi_tmp_path / "ref" / "timeseries.csv"), read_csv(mpi_tmp_path / "cut" / "timeseries.csv")
+        assert a.shape == b.shape and np.array_equal(a[:, 0], np.arange(201))
+        assert np.allclose(a, b, rtol=1e-12, atol=1e-14)
+        times = [(mpi_tmp_path / d / "solution.xdmf").read_text().count("<Time ") for d in ("ref", "cut")]
+        assert times[0] == times[1]
+
+
+def test_restart_refuses_a_different_run(mpi_tmp_path):
+    kw = dict(pair="P1+/P0", dt=2e-3, T=0.1)
+    with pytest.raises(Exception):
+        simulate(membrane.Problem(N=6), out=mpi_tmp_path, on_step=lambda n, row: n == 10, **kw)
+    with pytest.raises(CheckpointError, match="dt"):
+        simulate(membrane.Problem(N=6), out=mpi_tmp_path, restart=True, pair="P1+/P0", dt=1e-3, T=0.1)
+    with pytest.raises(CheckpointError, match="mesh|problem"):
+        simulate(membrane.Problem(N=7), out=mpi_tmp_path, restart=True, **kw)
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="signals a separate serial process")
+def test_sigterm_stops_cleanly_and_restart_completes(tmp_path):
+    """SIGTERM: the run ends its step, writes a checkpoint, says so and exits 128+15; the
+    restart finishes the run and the CSV equals an uninterrupted one."""
+    args = ["membrane", "--N", "24", "--pair", "P2/P1", "--dt", "1e-3", "--T", "1.2", "--write-every", "50"]
+    cmd = [sys.executable, "-m", "sdm_dolfinx"]
+    p = subprocess.Popen(cmd + args + ["--out", str(tmp_path / "cut")], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True)
+    p.stdout.readline()                          # the start line: set-up is done soon after
+    time.sleep(2.0)
+    p.send_signal(signal.SIGTERM)
+    out, err = p.communicate(timeout=300)
+    assert p.returncode == 128 + signal.SIGTERM, err
+    assert "checkpoint written" in err and "Traceback" not in err
+    assert (tmp_path / "cut" / "checkpoint.npz").exists()
+    info = json.loads((tmp_path / "cut" / "run.json").read_text())
+    assert info["status"] == "interrupted" and 0 < info["interrupted_at_step"] < 1200
+    r = subprocess.run(cmd + ["membrane", "--restart", str(tmp_path / "cut"), "--quiet"], capture_output=True,
+                       text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    assert cli.main(args + ["--out", str(tmp_path / "ref"), "--quiet"]) == 0
+    a, b = read_csv(tmp_path / "ref" / "timeseries.csv"), read_csv(tmp_path / "cut" / "timeseries.csv")
+    assert a.shape == b.shape and np.allclose(a, b, rtol=1e-12, atol=1e-14)
+
+
+def test_killed_run_keeps_whole_rows_and_restarts(mpi_tmp_path):
+    """A hard kill leaves the CSV and XDMF ahead of the last checkpoint (here: killed in
+    step 21 with the checkpoint of step 14, simulated by an exception that nothing
+    catches). The CSV holds whole rows only; the restart drops the steps after the
+    checkpoint and continues without duplicates or gaps."""
+    out = mpi_tmp_path / "run"
+    kw = dict(pair="P1+/P0", dt=2e-3, T=0.1, write_every=2)
+
+    def kill(n, row):
+        if n == 20:
+            raise KeyboardInterrupt("simulated SIGKILL")
+    with pytest.raises(KeyboardInterrupt):
+        simulate(membrane.Problem(N=6), out=out, checkpoint_every=14, on_step=kill, **kw)
+    if COMM.rank == 0:
+        rows = (out / "timeseries.csv").read_text().splitlines()
+        assert len(rows) == 22 and all(len(r.split(",")) == 9 for r in rows)   # header + steps 0..20
+    r = simulate(membrane.Problem(N=6), out=out, restart=True, **kw)
+    assert r.info["restarted_from_step"] == 14
+    simulate(membrane.Problem(N=6), out=mpi_tmp_path / "ref", **kw)
+    if COMM.rank == 0:
+        a, b = read_csv(mpi_tmp_path / "ref" / "timeseries.csv"), read_csv(out / "timeseries.csv")
+        assert np.array_equal(b[:, 0], np.arange(51)) and np.allclose(a, b, rtol=1e-12, atol=1e-14)
+        times = [(d / "solution.xdmf").read_text().count("<Time ") for d in (mpi_tmp_path / "ref", out)]
+        assert times[0] == times[1] == 4 * 26           # 4 fields at steps 0, 2, ..., 50
+
+
+def _write(path, text):
+    if COMM.rank == 0:
+        path.write_text(text)
+    COMM.Barrier()
+    return str(path)
+
+
+# (argv, TOML text or None, expected fragment of the one-line message)
+BAD = [
+    (["membrane", "--pair", "P3/P0"], None, "invalid choice"),
+    (["membrane", "--scheme", "leapfrog"], None, "invalid choice"),
+    (["membrane", "--dt", "0"], None, "positive"),
+    (["membrane", "--dt=-1e-3"], None, "positive"),
+    (["membrane", "--dt", "-1"], None, "positive"),
+    (["membrane", "--dt", "nan"], None, "positive"),
+    (["membrane", "--T", "inf"], None, "positive"),
+    (["membrane", "--dt", "abc"], None, "not a number"),
+    (["membrane", "--dt", "0.1", "--T", "0.05"], None, "--T"),
+    (["membrane", "--N", "0"], None, "--N"),
+    (["membrane", "--N", "-4"], None, "--N"),
+    (["membrane", "--N", "2.5"], None, "invalid int"),
+    (["membrane", "--pair", "P1+/P0", "--mass", "lumped"], None, "not available"),
+    (["membrane", "--write-every", "0"], None, "--write-every"),
+    (["membrane", "--checkpoint-every", "-3"], None, "--checkpoint-every"),
+    (["membrane", "--probe", "2", "0.5"], None, "--probe"),
+    (["membrane", "--bogus"], None, "unrecognised"),
+    (["nosuchproblem"], None, "invalid choice"),
+    (["membrane", "--config", "/nonexistent/run.toml"], None, "not found"),
+    (["membrane"], "dt = 1e-3\nNN = 4\n", "unknown key 'NN'"),
+    (["membrane"], 'N = "ten"\n', "key 'N': expected an integer"),
+    (["membrane"], "N = true\n", "key 'N': expected an integer"),
+    (["membrane"], "dt = -0.5\n", "key 'dt'"),
+    (["membrane"], "dt = nan\n", "key 'dt'"),
+    (["membrane"], 'dt = "small"\n', "key 'dt': expected a number"),
+    (["membrane"], 'pair = "Q2/Q1"\n', "key 'pair'"),
+    (["membrane"], "probe = [0.5]\n", "key 'probe'"),
+    (["membrane"], "overwrite = 1\n", "key 'overwrite'"),
+    (["membrane"], "N = 4\ndt = \n", "invalid TOML"),
+    (["membrane"], 'problem = "disc"\n', "key 'problem'"),
+    (["membrane"], "N = 0\n", "--N"),
+    (["membrane", "--restart", "/nonexistent/run"], None, "no run.json"),
+]
+
+
+@pytest.mark.parametrize("argv,toml,message", BAD)
+def test_bad_input_is_refused(argv, toml, message, mpi_tmp_path, capsys):
+    """Status 2, a one-line message naming the problem, no traceback, nothing written."""
+    out = mpi_tmp_path / "never"
+    argv = list(argv)
+    if toml is not None:
+        argv += ["--config", _write(mpi_tmp_path / "bad.toml", toml)]
+    if argv[0] == "membrane":
+        argv += ["--out", str(out)]
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err
+    if COMM.rank == 0:
+        assert message in err and len(err.strip().splitlines()) == 1, err
+        assert "Traceback" not in err
+    assert not out.exists()
+
+
+def test_config_file_and_command_line_override(mpi_tmp_path):
+    """A TOML file describes the run; options on the command line win."""
+    cfg = _write(mpi_tmp_path / "run.toml", 'problem = "membrane"\npair = "P2/P1"\nN = 4\ndt = 0.01\nT = 0.05\n'
+                                            'write-every = 2\nquiet = true\n')
+    out = mpi_tmp_path / "out"
+    assert cli.main(["membrane", "--config", cfg, "--N", "5", "--out", str(out)]) == 0
+    info = json.loads((out / "run.json").read_text()) if COMM.rank == 0 else None
+    info = COMM.bcast(info, root=0)
+    assert info["pair"] == "P2/P1" and info["problem"]["parameters"]["N"] == 5 and info["steps"] == 5
+
+
+@pytest.mark.parametrize("name", sorted(p for p in os.listdir(os.path.join(os.path.dirname(__file__), "..", "data",
+                                                                             "paper")) if p.endswith(".toml")))
+def test_paper_configurations_are_valid(name):
+    """Every configuration in data/paper parses and passes the checks (not run here)."""
+    path = os.path.join(os.path.dirname(__file__), "..", "data", "paper", name)
+    parser, subparsers = cli.build_parser()
+    problem = name.split("_")[0]
+    defaults = cli.load_config(path, subparsers[problem], problem)
+    assert {"pair", "dt", "T"} <= set(defaults)
