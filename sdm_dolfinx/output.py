@@ -118,6 +118,71 @@ def _json_default(o):
     raise TypeError(f"not JSON serialisable: {type(o)}")
 
 
+def gather_blocks(V, values, comm):
+    """Global array (rank 0) of per-block data of space V (owned rows, global block order)."""
+    im = V.dofmap.index_map
+    n = im.size_local
+    parts = comm.gather((im.local_range[0], np.asarray(values)[:n]), root=0)
+    if comm.rank != 0:
+        return None
+    out = np.empty((im.size_global,) + np.asarray(values).shape[1:])
+    for start, a in parts:
+        out[start:start + len(a)] = a
+    return out
+
+
+class StateWriter:
+    """state.h5: the native dof vectors of U and V every K steps, for post-processing.
+
+    XDMF shows ParaView vertex interpolants; this file keeps the exact coefficients, in the
+    run's global dof numbering, together with each dof's coordinates (so that a reader on
+    any number of ranks can match them) and the mesh fingerprint. Written by rank 0 with
+    (serial) h5py after a gather; datasets ``U``, ``V`` (one row per write), ``t``, ``step``;
+    groups ``W`` and ``V_space`` hold ``dof_coordinates`` and ``block_size``.
+    """
+
+    def __init__(self, path, disc, integrator, fingerprint, append=False, last_step=None):
+        self.comm, self.path = disc.comm, Path(path)
+        vspace = disc.H if integrator.block else disc.W
+        coords = {name: gather_blocks(sp, sp.tabulate_dof_coordinates(), self.comm)
+                  for name, sp in (("W", disc.W), ("V_space", vspace))}
+        bs = {"W": disc.W.dofmap.index_map_bs, "V_space": vspace.dofmap.index_map_bs}
+        if self.comm.rank == 0:
+            import h5py
+            if append and self.path.exists():
+                with h5py.File(self.path, "a") as h5:
+                    keep = int(np.searchsorted(h5["step"][:], last_step, side="right"))
+                    for name in ("U", "V", "t", "step"):
+                        h5[name].resize(keep, axis=0)
+            else:
+                with h5py.File(self.path, "w") as h5:
+                    for name in ("W", "V_space"):
+                        g = h5.create_group(name)
+                        g.create_dataset("dof_coordinates", data=coords[name])
+                        g.attrs["block_size"] = bs[name]
+                    nu = coords["W"].shape[0] * bs["W"]
+                    nv = coords["V_space"].shape[0] * bs["V_space"]
+                    h5.create_dataset("U", shape=(0, nu), maxshape=(None, nu), chunks=(1, nu))
+                    h5.create_dataset("V", shape=(0, nv), maxshape=(None, nv), chunks=(1, nv))
+                    h5.create_dataset("t", shape=(0,), maxshape=(None,))
+                    h5.create_dataset("step", shape=(0,), maxshape=(None,), dtype="i8")
+                    h5.attrs["V_is"] = "V in H^h (block system)" if integrator.block else "Vbar in W^h"
+                    for k, v in fingerprint.items():
+                        h5.attrs["mesh_" + k] = v
+        self.comm.Barrier()
+
+    def write(self, U, V, step, t):
+        from .checkpoint import gather
+        u, v = gather(U, self.comm), gather(V, self.comm)
+        if self.comm.rank == 0:
+            import h5py
+            with h5py.File(self.path, "a") as h5:
+                n = h5["t"].shape[0]
+                for name, val in (("U", u), ("V", v), ("t", t), ("step", step)):
+                    h5[name].resize(n + 1, axis=0)
+                    h5[name][n] = val
+
+
 class XDMFWriter:
     """solution.xdmf: displacement, velocity, contact stress and active set at vertices.
 

@@ -11,7 +11,7 @@ import numpy as np
 from . import checkpoint, compat
 from .discretisation import Discretisation
 from .integrator import CONSTRAINED_ITERATE, Integrator, StepError
-from .output import BASE_COLUMNS, ConstraintProbe, CSVWriter, PointProbe, XDMFWriter, write_json
+from .output import BASE_COLUMNS, ConstraintProbe, CSVWriter, PointProbe, StateWriter, XDMFWriter, write_json
 
 
 class Interrupted(RuntimeError):
@@ -140,7 +140,7 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
         integ.solver.active = np.isin(gidx, act)
         first = meta["step"]
         info["restarted_from_step"] = first
-    writer = xdmf = None
+    writer = xdmf = state = None
     if out is not None:
         out = Path(out)
         if comm.rank == 0:
@@ -156,7 +156,12 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
             checkpoint.truncate_xdmf(out / "solution.xdmf", first * dt, comm)
         writer = CSVWriter(out / "timeseries.csv", columns, comm, append=restart)
         xdmf = XDMFWriter(out / "solution.xdmf", disc, integ, append=restart)
+        state = StateWriter(out / "state.h5", disc, integ, fingerprint, append=restart, last_step=first)
         write_every = write_every or 10
+
+    def write_fields(n):
+        xdmf.write(U, V, lam, lam > 0, n * dt)
+        state.write(U, V, n, n * dt)
     scale = max(comm.allreduce(float(np.max(np.abs(disc.lb), initial=0.0)), op=MPI.MAX), 1.0)
     stop = _StopFlag(handle_signals)
 
@@ -184,7 +189,7 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
         if not restart:
             record(0, 0.0, 0, 0)
             if xdmf is not None:
-                xdmf.write(U, V, lam, lam > 0, 0.0)
+                write_fields(0)
         last_print = time.perf_counter()
         for n in range(first, nsteps):
             t = n * dt
@@ -196,7 +201,7 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
                                 f"{-gap_imposed[n]:.3e} on the constrained iterate")
             row = record(n + 1, (n + 1) * dt, info_step["its"], info_step["n_active"])
             if xdmf is not None and ((n + 1) % write_every == 0 or n + 1 == nsteps):
-                xdmf.write(U, V, lam, lam > 0, (n + 1) * dt)
+                write_fields(n + 1)
             if progress and comm.rank == 0 and (time.perf_counter() - last_print > 5 or n + 1 == nsteps):
                 last_print = time.perf_counter()
                 print(f"  step {n + 1}/{nsteps}  t = {(n + 1) * dt:.4g}  energy = {row['energy']:.6g}  "

@@ -105,6 +105,11 @@ def test_killed_run_keeps_whole_rows_and_restarts(mpi_tmp_path):
         assert np.array_equal(b[:, 0], np.arange(51)) and np.allclose(a, b, rtol=1e-12, atol=1e-14)
         times = [(d / "solution.xdmf").read_text().count("<Time ") for d in (mpi_tmp_path / "ref", out)]
         assert times[0] == times[1] == 4 * 26           # 4 fields at steps 0, 2, ..., 50
+        import h5py
+        with h5py.File(out / "state.h5") as h5, h5py.File(mpi_tmp_path / "ref" / "state.h5") as h5r:
+            assert np.array_equal(h5["step"][:], np.arange(0, 51, 2))
+            assert np.allclose(h5["U"][:], h5r["U"][:], rtol=0, atol=1e-14)
+            assert np.allclose(h5["V"][:], h5r["V"][:], rtol=0, atol=1e-12)
 
 
 def _write(path, text):
