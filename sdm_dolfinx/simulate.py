@@ -87,8 +87,9 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
         restart: continue the run in ``out`` from its checkpoint (same parameters and ranks).
         handle_signals: on SIGINT/SIGTERM stop after the current step, checkpoint, raise
             :class:`Interrupted`.
-        on_step: ``f(step, row)`` called after every step; returning True requests a stop
-            (as a signal would).
+        on_step: ``f(step, row)`` called after every step with the time-series row (plus
+            ``linear_its_total``, the cumulative linear iterations); returning True requests
+            a stop (as a signal would).
         constraint_tol: a constrained iterate below its bound by more than this (relative
             to the largest |bound|, or absolute when the bounds are 0) stops the run.
 
@@ -173,6 +174,7 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
             row["contact_force"] = comm.allreduce(float(np.sum(lam)), op=MPI.SUM)
         if "momentum_y" in columns:
             row["momentum_y"] = integ.momentum(V, problem.momentum_component)
+        row["linear_its_total"] = integ.solver.total_linear_its     # for on_step observers (not in the CSV)
         if not np.isfinite(row["energy"]):
             raise StepError(f"step {n} (t = {t:.6g}): the energy is not finite ({row['energy']})")
         for c in columns:
