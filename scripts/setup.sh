@@ -5,7 +5,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$(pwd)
 PKGS="python3-dolfinx python3-petsc4py python3-mpi4py python3-h5py python3-matplotlib python3-pytest
-python3-gmsh python3-venv python3-pip python3-setuptools openmpi-bin"
+python3-gmsh python3-scipy python3-venv python3-pip python3-setuptools openmpi-bin"
 missing=()
 for p in $PKGS; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -8,8 +8,12 @@ Quick use::
 """
 import logging
 
-logging.getLogger("root").setLevel(logging.WARNING)
-logging.getLogger().setLevel(logging.WARNING)
+import ffcx  # noqa: F401  (its logging.basicConfig creates the root handler)
+
+# The JIT compiler's build steps log "INFO:root:running build_ext" (setuptools raises the
+# root logger's level while it compiles): keep the console to warnings and errors.
+for _h in logging.getLogger().handlers:
+    _h.setLevel(logging.WARNING)
 
 from . import membrane  # noqa: E402
 from .discretisation import Discretisation  # noqa: E402
