@@ -35,3 +35,9 @@ demo: setup
 
 clean:
 	rm -rf .venv output demos/output *.egg-info
+
+# The same suite on dolfinx 0.9: Debian 13 (trixie) in a chroot, built once (~5 min, ~3 GB)
+# under /var/cache/sdm_dolfinx and reused; needs root. See scripts/dolfinx09.sh.
+.PHONY: test-dolfinx09
+test-dolfinx09:
+	NP=$(NP) bash scripts/dolfinx09.sh test

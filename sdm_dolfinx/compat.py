@@ -84,17 +84,30 @@ def assemble_vector(L):
 
 
 def assemble_matrix_block(a, bcs=(), diagonal=1.0):
-    A = petsc_module().assemble_matrix_block(a, list(bcs), diagonal)
+    """One monolithic matrix of the block form ``a`` (list of lists); rows owned by a rank
+    are its rows of block 0, then of block 1, ...
+
+    ``assemble_matrix_block`` up to 0.9; 0.10 replaced it by ``assemble_matrix(kind="mpi")``.
+    """
+    mod = petsc_module()
+    if hasattr(mod, "assemble_matrix_block"):
+        A = mod.assemble_matrix_block(a, list(bcs), diagonal)
+    else:  # pragma: no cover - dolfinx >= 0.10
+        A = mod.assemble_matrix(a, list(bcs), diagonal, kind="mpi")
     A.assemble()
     return A
 
 
 def model_to_mesh(model, comm, rank, gdim):
-    """gmsh model -> (mesh, cell_tags, facet_tags)."""
-    if NEW_API:  # pragma: no cover
-        from dolfinx.io import gmshio
-        data = gmshio.model_to_mesh(model, comm, rank, gdim=gdim)
-        return data[0], data[1], data[2]
+    """gmsh model -> (mesh, cell_tags, facet_tags).
+
+    ``dolfinx.io.gmshio.model_to_mesh`` returns that tuple up to 0.9; 0.10 has
+    ``dolfinx.io.gmsh.model_to_mesh`` returning a ``MeshData``.
+    """
+    if DOLFINX_VERSION >= (0, 10):  # pragma: no cover
+        from dolfinx.io import gmsh as gmsh_io
+        data = gmsh_io.model_to_mesh(model, comm, rank, gdim=gdim)
+        return data.mesh, data.cell_tags, data.facet_tags
     from dolfinx.io import gmshio
     msh, ct, ft = gmshio.model_to_mesh(model, comm, rank, gdim=gdim)
     return msh, ct, ft
@@ -115,12 +128,35 @@ def colliding_cells(msh, tree, points):
     return geometry.compute_colliding_cells(msh, cand, points)
 
 
+def _num_cells(msh):
+    """Local cells, owned and ghost."""
+    imap = msh.topology.index_map(msh.topology.dim)
+    return imap.size_local + imap.num_ghosts
+
+
 def mesh_geometry_dofmap(msh):
-    """Cell -> geometry node indices, as a 2-D array."""
+    """Cell -> geometry node indices, as a 2-D (num_cells, nodes_per_cell) array."""
     if NEW_API:  # pragma: no cover
         return msh.geometry.dofmap
-    return msh.geometry.dofmap.array.reshape(msh.topology.index_map(msh.topology.dim).size_local
-                                             + msh.topology.index_map(msh.topology.dim).num_ghosts, -1)
+    nodes = msh.geometry.cmap.create_dof_layout().num_dofs
+    return msh.geometry.dofmap.array.reshape(-1, nodes)          # also with 0 local cells
+
+
+def dofmap_list(V):
+    """Cell -> dof (block) indices of V, as a 2-D (num_cells, dofs_per_cell) array.
+
+    ``V.dofmap.list`` is that array on dolfinx >= 0.7 and an AdjacencyList in 0.5.
+    """
+    if NEW_API:  # pragma: no cover
+        return V.dofmap.list
+    return V.dofmap.list.array.reshape(-1, V.dofmap.dof_layout.num_dofs)   # also with 0 local cells
+
+
+def interpolation_points(V):
+    """Reference interpolation points of V's element (for ``fem.Expression``): a method in
+    0.5, a property on newer versions."""
+    points = V.element.interpolation_points
+    return points() if callable(points) else points
 
 
 def entities_to_geometry(msh, dim, entities):
@@ -132,7 +168,55 @@ def entities_to_geometry(msh, dim, entities):
     return cpp.mesh.entities_to_geometry(getattr(msh, "_mesh", msh), dim, entities, False)
 
 
+class _XDMFFile:
+    """dolfinx >= 0.7's XDMFFile, writing any Lagrange field as every version can.
+
+    0.5 interpolates what it writes to the mesh vertices itself; newer versions accept only
+    DG0 or Lagrange of the mesh's geometry degree (P2 on gmsh's curved meshes). A field of
+    another degree is interpolated into that space (same mesh, same name) before writing.
+    """
+
+    def __init__(self, comm, path, mode):
+        from dolfinx import io
+        self._file = io.XDMFFile(comm, str(path), mode)
+        self._out = {}
+
+    def write_mesh(self, msh):
+        self._file.write_mesh(msh)
+
+    def write_function(self, u, t=0.0):
+        V = u.function_space
+        elem = V.ufl_element()
+        degree = V.mesh.geometry.cmap.degree
+        if elem.embedded_superdegree == degree or (elem.embedded_superdegree == 0 and elem.discontinuous):
+            self._file.write_function(u, t)
+            return
+        key = (u.name, u.ufl_shape)
+        if key not in self._out:
+            shape = u.ufl_shape
+            Vout = fem.functionspace(V.mesh, ("Lagrange", degree, shape) if shape else ("Lagrange", degree))
+            self._out[key] = fem.Function(Vout, name=u.name)
+        out = self._out[key]
+        out.interpolate(u)
+        self._file.write_function(out, t)
+
+    def close(self):
+        self._file.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def __getattr__(self, name):    # read_mesh, write_meshtags, ...
+        return getattr(self._file, name)
+
+
 def xdmf_file(comm, path, mode="w"):
+    """An XDMF file whose ``write_function`` takes P1 fields on any mesh (curved included)."""
+    if NEW_API:  # pragma: no cover
+        return _XDMFFile(comm, path, mode)
     from dolfinx import io
     return io.XDMFFile(comm, str(path), mode)
 
@@ -145,3 +229,63 @@ def versions():
             "petsc4py": petsc4py.__version__, "petsc": ".".join(map(str, PETSc.Sys.getVersion())),
             "mpi4py": __import__("mpi4py").__version__, "numpy": np.__version__,
             "mpi": MPI.Get_library_version().splitlines()[0]}
+
+
+def cell_tree(msh, cells, padding=0.0):
+    """A bounding-box tree of the given local cells, each box grown by ``padding``."""
+    tdim = msh.topology.dim
+    cells = np.asarray(cells, dtype=np.int32)
+    if NEW_API:  # pragma: no cover
+        return geometry.bb_tree(msh, tdim, entities=cells, padding=padding)
+    return geometry.BoundingBoxTree(msh, tdim, cells, padding)
+
+
+def cell_candidates(tree, points):
+    """For each point (rows of an (n, 3) array), the cells whose (padded) box contains it."""
+    if NEW_API:  # pragma: no cover
+        return geometry.compute_collisions_points(tree, points)
+    return geometry.compute_collisions(tree, points)
+
+
+def interpolate_nonmatching(u_to, u_from, padding=1e-8):
+    """Interpolate ``u_from`` into ``u_to``'s space when the two live on different meshes
+    (same communicator, any partitions); points up to ``padding`` outside the source mesh
+    are extrapolated from the nearest cell.
+
+    dolfinx 0.5 cannot (``Function.interpolate`` wants the same mesh): point evaluation
+    distributed over the ranks, :func:`sdm_dolfinx.postprocess.interpolate_by_points`.
+    dolfinx 0.7-0.8: ``create_nonmatching_meshes_interpolation_data`` and
+    ``interpolate(..., nmm_interpolation_data=)``; >= 0.9: ``create_interpolation_data``
+    and ``Function.interpolate_nonmatching``.
+    """
+    if NEW_API:  # pragma: no cover
+        V_to, V_from = u_to.function_space, u_from.function_space
+        tdim = V_to.mesh.topology.dim
+        imap = V_to.mesh.topology.index_map(tdim)
+        cells = np.arange(imap.size_local + imap.num_ghosts, dtype=np.int32)
+        if hasattr(fem, "create_interpolation_data"):
+            data = fem.create_interpolation_data(V_to, V_from, cells, padding=padding)
+            u_to.interpolate_nonmatching(u_from, cells, data)
+        else:
+            data = fem.create_nonmatching_meshes_interpolation_data(
+                V_to.mesh._cpp_object, V_to.element, V_from.mesh._cpp_object, padding=padding)
+            u_to.interpolate(u_from, nmm_interpolation_data=data)
+        u_to.x.scatter_forward()
+        return {}
+    from .postprocess import interpolate_by_points
+    return interpolate_by_points(u_to, u_from, padding)
+
+
+def vtk_mesh(V):
+    """(topology, cell types, points) of a Lagrange space for a VTK/pyvista grid (points =
+    the dof coordinates, in dof order). ``create_vtk_mesh`` up to 0.6, ``vtk_mesh`` later."""
+    from dolfinx import plot
+    if hasattr(plot, "vtk_mesh"):  # pragma: no cover
+        return plot.vtk_mesh(V)
+    return plot.create_vtk_mesh(V)
+
+
+def interpolation_points(V):
+    """The reference interpolation points of V's element (a method in 0.5, a property later)."""
+    pts = V.element.interpolation_points
+    return pts() if callable(pts) else pts

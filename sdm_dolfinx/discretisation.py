@@ -24,9 +24,9 @@ def vertex_to_dof(V, vertices):
     tdim = msh.topology.dim
     msh.topology.create_connectivity(tdim, 0)
     c2v = msh.topology.connectivity(tdim, 0)
-    num_cells = msh.topology.index_map(tdim).size_local + msh.topology.index_map(tdim).num_ghosts
-    cell_vertices = c2v.array.reshape(num_cells, -1)
-    dofs = V.dofmap.list.array.reshape(num_cells, -1)
+    nv_cell = tdim + 1                                      # simplices (triangles, tetrahedra)
+    cell_vertices = c2v.array.reshape(-1, nv_cell)          # (also on a rank without cells)
+    dofs = compat.dofmap_list(V)
     nverts = msh.topology.index_map(0).size_local + msh.topology.index_map(0).num_ghosts
     v2d = np.full(nverts, -1, dtype=np.int64)
     layout = V.dofmap.dof_layout

@@ -15,6 +15,10 @@ from sdm_dolfinx import cli, membrane, simulate
 from sdm_dolfinx.checkpoint import CheckpointError
 
 COMM = MPI.COMM_WORLD
+# A restarted run repeats the same operations: serially it is bit-identical. On 2 ranks the
+# parallel factorisation (MUMPS) is not bit-reproducible from run to run (measured up to
+# 1.6e-11 relative on lambda_probe between identical runs), so the check allows 1e-9 there.
+RTOL = 1e-12 if COMM.size == 1 else 1e-9
 
 
 def read_csv(path):
@@ -41,7 +45,7 @@ def test_restart_continues_the_membrane_exactly(pair, mass, mpi_tmp_path):
     if COMM.rank == 0:
         a, b = read_csv(mpi_tmp_path / "ref" / "timeseries.csv"), read_csv(mpi_tmp_path / "cut" / "timeseries.csv")
         assert a.shape == b.shape and np.array_equal(a[:, 0], np.arange(201))
-        assert np.allclose(a, b, rtol=1e-12, atol=1e-14)
+        assert np.allclose(a, b, rtol=RTOL, atol=RTOL * np.abs(a).max(axis=0))
         times = [(mpi_tmp_path / d / "solution.xdmf").read_text().count("<Time ") for d in ("ref", "cut")]
         assert times[0] == times[1]
 
@@ -78,7 +82,7 @@ def test_sigterm_stops_cleanly_and_restart_completes(tmp_path):
     assert r.returncode == 0, r.stderr
     assert cli.main(args + ["--out", str(tmp_path / "ref"), "--quiet"]) == 0
     a, b = read_csv(tmp_path / "ref" / "timeseries.csv"), read_csv(tmp_path / "cut" / "timeseries.csv")
-    assert a.shape == b.shape and np.allclose(a, b, rtol=1e-12, atol=1e-14)
+    assert a.shape == b.shape and np.allclose(a, b, rtol=RTOL, atol=RTOL * np.abs(a).max(axis=0))
 
 
 def test_killed_run_keeps_whole_rows_and_restarts(mpi_tmp_path):
@@ -102,14 +106,14 @@ def test_killed_run_keeps_whole_rows_and_restarts(mpi_tmp_path):
     simulate(membrane.Problem(N=6), out=mpi_tmp_path / "ref", **kw)
     if COMM.rank == 0:
         a, b = read_csv(mpi_tmp_path / "ref" / "timeseries.csv"), read_csv(out / "timeseries.csv")
-        assert np.array_equal(b[:, 0], np.arange(51)) and np.allclose(a, b, rtol=1e-12, atol=1e-14)
+        assert np.array_equal(b[:, 0], np.arange(51)) and np.allclose(a, b, rtol=RTOL, atol=RTOL * np.abs(a).max(axis=0))
         times = [(d / "solution.xdmf").read_text().count("<Time ") for d in (mpi_tmp_path / "ref", out)]
         assert times[0] == times[1] == 4 * 26           # 4 fields at steps 0, 2, ..., 50
         import h5py
         with h5py.File(out / "state.h5") as h5, h5py.File(mpi_tmp_path / "ref" / "state.h5") as h5r:
             assert np.array_equal(h5["step"][:], np.arange(0, 51, 2))
-            assert np.allclose(h5["U"][:], h5r["U"][:], rtol=0, atol=1e-14)
-            assert np.allclose(h5["V"][:], h5r["V"][:], rtol=0, atol=1e-12)
+            assert np.allclose(h5["U"][:], h5r["U"][:], rtol=0, atol=RTOL * np.abs(h5r["U"][:]).max())
+            assert np.allclose(h5["V"][:], h5r["V"][:], rtol=0, atol=RTOL * np.abs(h5r["V"][:]).max())
 
 
 def _write(path, text):
@@ -208,4 +212,4 @@ def test_restart_continues_the_disc_exactly(mpi_tmp_path):
         a, b = read_csv(mpi_tmp_path / "ref" / "timeseries.csv"), read_csv(mpi_tmp_path / "cut" / "timeseries.csv")
         assert a.shape == b.shape == (121, 11)
         assert a[:, 7].max() > 0                                           # it is in contact
-        assert np.allclose(a, b, rtol=1e-12, atol=1e-12 * np.abs(a).max(axis=0))
+        assert np.allclose(a, b, rtol=RTOL, atol=RTOL * np.abs(a).max(axis=0))
