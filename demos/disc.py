@@ -68,8 +68,7 @@ def cell_data(discretisation, U=None):
     W = discretisation.W
     msh = W.mesh
     ncells = msh.topology.index_map(msh.topology.dim).size_local
-    dofs = W.dofmap.list
-    dofs = np.asarray(getattr(dofs, "array", dofs)).reshape(-1, W.dofmap.dof_layout.num_dofs)[:ncells]
+    dofs = compat.dofmap_list(W)[:ncells]
     xy = W.tabulate_dof_coordinates()[:, :2][dofs]                     # (ncells, 6, 2)
     u = fem.Function(W)
     if U is not None:
@@ -78,8 +77,7 @@ def cell_data(discretisation, U=None):
     disp = u.x.array.reshape(-1, 2)[dofs]
     Q0 = compat.function_space(msh, compat.element("DG", compat.cell_name(msh), 0))
     vm = fem.Function(Q0)
-    points = Q0.element.interpolation_points        # a method in dolfinx 0.5, a property later
-    vm.interpolate(fem.Expression(von_mises(u), points() if callable(points) else points))
+    vm.interpolate(fem.Expression(von_mises(u), compat.interpolation_points(Q0)))
     pieces = COMM.gather((xy, disp, vm.x.array[:ncells].copy(), discretisation.cx[:2].T.copy()), root=0)
     if COMM.rank != 0:
         return None
