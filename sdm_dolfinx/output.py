@@ -162,9 +162,10 @@ class StateWriter:
                         g.attrs["block_size"] = bs[name]
                     nu = coords["W"].shape[0] * bs["W"]
                     nv = coords["V_space"].shape[0] * bs["V_space"]
-                    h5.create_dataset("U", shape=(0, nu), maxshape=(None, nu), chunks=(1, nu))
-                    h5.create_dataset("V", shape=(0, nv), maxshape=(None, nv), chunks=(1, nv))
-                    h5.create_dataset("t", shape=(0,), maxshape=(None,))
+                    # float64: h5py's default float32 would lose half the digits
+                    h5.create_dataset("U", shape=(0, nu), maxshape=(None, nu), chunks=(1, nu), dtype="f8")
+                    h5.create_dataset("V", shape=(0, nv), maxshape=(None, nv), chunks=(1, nv), dtype="f8")
+                    h5.create_dataset("t", shape=(0,), maxshape=(None,), dtype="f8")
                     h5.create_dataset("step", shape=(0,), maxshape=(None,), dtype="i8")
                     h5.attrs["V_is"] = "V in H^h (block system)" if integrator.block else "Vbar in W^h"
                     for k, v in fingerprint.items():

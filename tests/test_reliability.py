@@ -112,6 +112,7 @@ def test_killed_run_keeps_whole_rows_and_restarts(mpi_tmp_path):
         import h5py
         with h5py.File(out / "state.h5") as h5, h5py.File(mpi_tmp_path / "ref" / "state.h5") as h5r:
             assert np.array_equal(h5["step"][:], np.arange(0, 51, 2))
+            assert h5["U"].dtype == h5["V"].dtype == np.float64
             assert np.allclose(h5["U"][:], h5r["U"][:], rtol=0, atol=RTOL * np.abs(h5r["U"][:]).max())
             assert np.allclose(h5["V"][:], h5r["V"][:], rtol=0, atol=RTOL * np.abs(h5r["V"][:]).max())
 
