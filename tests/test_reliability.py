@@ -114,7 +114,9 @@ def test_killed_run_keeps_whole_rows_and_restarts(mpi_tmp_path):
             assert np.array_equal(h5["step"][:], np.arange(0, 51, 2))
             assert h5["U"].dtype == h5["V"].dtype == np.float64
             assert np.allclose(h5["U"][:], h5r["U"][:], rtol=0, atol=RTOL * np.abs(h5r["U"][:]).max())
-            assert np.allclose(h5["V"][:], h5r["V"][:], rtol=0, atol=RTOL * np.abs(h5r["V"][:]).max())
+            # Vbar^{n+1} = 4 (X - U^n)/dt - Vbar^n carries displacement round-off times 4/dt
+            v_tol = RTOL * max(np.abs(h5r["V"][:]).max(), 4 / kw["dt"] * np.abs(h5r["U"][:]).max())
+            assert np.allclose(h5["V"][:], h5r["V"][:], rtol=0, atol=v_tol)
 
 
 def _write(path, text):
