@@ -1,9 +1,12 @@
 """Checkpoints: the full state of a run (U, V, active set, step, time, parameters, mesh
 identity) in one ``checkpoint.npz``, written atomically (temporary file, then rename).
 
-Vectors are stored in the global (PETSc) numbering, so a restart needs the same number of
-ranks as the run that wrote them (the mesh partition fixes that numbering); the mesh
-fingerprint and the parameters are checked on restart.
+Values are stored with the coordinates of their dofs (and the active constraints by their
+vertex coordinates), not in the global numbering: that numbering depends on the mesh
+partition, which a partitioner need not reproduce from one process to the next (it does
+not for the gmsh disc on dolfinx 0.9). On restart each rank finds its dofs by coordinates,
+so any partition (and any number of ranks) reads the same state; the mesh fingerprint and
+the parameters are checked as well.
 """
 import json
 import os
@@ -33,12 +36,6 @@ def gather(vec, comm):
     return out
 
 
-def scatter(arr, vec):
-    """Set the owned entries of ``vec`` from the global array ``arr`` (present on every rank)."""
-    r0, r1 = vec.getOwnershipRange()
-    vec.array[:] = arr[r0:r1]
-
-
 def mesh_fingerprint(msh):
     """Global vertex and cell counts and coordinate moments: equal meshes, equal prints."""
     comm = msh.comm
@@ -56,26 +53,77 @@ def same_fingerprint(a, b, rtol=1e-12):
             and all(abs(a[k] - b[k]) <= rtol * max(1.0, abs(b[k])) for k in ("x_sum", "x2_sum")))
 
 
-def save(folder, comm, U, V, active_gidx, meta):
-    """Write ``folder/checkpoint.npz`` atomically (collective)."""
-    u, v = gather(U, comm), gather(V, comm)
-    act = comm.gather(np.asarray(active_gidx, dtype=np.int64), root=0)
+def _owned(space, vec):
+    """(coordinates, values) of the owned dof blocks of a vector of ``space``."""
+    n = space.dofmap.index_map.size_local
+    bs = space.dofmap.index_map_bs
+    return space.tabulate_dof_coordinates()[:n], np.array(vec.array).reshape(n, bs)
+
+
+def _gather_rows(a, comm):
+    parts = comm.gather(np.asarray(a), root=0)
+    return np.concatenate(parts) if comm.rank == 0 else None
+
+
+def save(folder, comm, fields, active_x, meta):
+    """Write ``folder/checkpoint.npz`` atomically (collective).
+
+    Args:
+        fields: ``{"U": (space, vec), "V": (space, vec)}``.
+        active_x: (n, 3) coordinates of this rank's active constrained vertices.
+    """
+    data = {}
+    for name, (space, vec) in fields.items():
+        x, v = _owned(space, vec)
+        data[name + "_x"], data[name] = _gather_rows(x, comm), _gather_rows(v, comm)
+    data["active_x"] = _gather_rows(np.asarray(active_x, dtype=float).reshape(-1, 3), comm)
     if comm.rank == 0:
         path = Path(folder) / CHECKPOINT
         tmp = path.with_name(path.name + ".tmp.npz")
-        np.savez(tmp, U=u, V=v, active=np.concatenate(act), meta=json.dumps(meta))
+        np.savez(tmp, meta=json.dumps(meta), **data)
         os.replace(tmp, path)
     comm.Barrier()
 
 
+def _match(saved_x, x, scale):
+    """Index into saved_x of each point of x (exact match up to round-off), or None."""
+    from scipy.spatial import cKDTree
+    if len(x) == 0:
+        return np.zeros(0, dtype=np.int64)
+    d, idx = cKDTree(saved_x).query(x)
+    return idx if np.all(d <= 1e-9 * scale) else None
+
+
+def restore(data, fields, comm):
+    """Set the owned entries of each field's vector from ``data`` (of :func:`load`)."""
+    for name, (space, vec) in fields.items():
+        x, _ = _owned(space, vec)
+        scale = max(float(np.abs(data[name + "_x"]).max(initial=0.0)), 1.0)
+        idx = _match(data[name + "_x"], x, scale)
+        if comm.allreduce(idx is None, op=MPI.LOR):
+            raise CheckpointError(f"the checkpoint's {name} dofs do not match this mesh")
+        vec.array[:] = data[name][idx].reshape(-1)
+
+
+def active_mask(data, cx):
+    """Which of this rank's constrained vertices (coordinates (3, n)) were active."""
+    saved = data["active_x"]
+    if len(saved) == 0 or cx.shape[1] == 0:
+        return np.zeros(cx.shape[1], dtype=bool)
+    from scipy.spatial import cKDTree
+    scale = max(float(np.abs(saved).max()), 1.0)
+    d, _ = cKDTree(saved).query(cx.T)
+    return d <= 1e-9 * scale
+
+
 def load(folder, comm):
-    """(U, V, active global indices, meta) of ``folder/checkpoint.npz``, on every rank."""
+    """(arrays, meta) of ``folder/checkpoint.npz``, on every rank."""
     path = Path(folder) / CHECKPOINT
     data, err = None, None
     if comm.rank == 0:
         try:
             with np.load(path) as f:
-                data = (f["U"], f["V"], f["active"], json.loads(str(f["meta"])))
+                data = ({k: f[k] for k in f.files if k != "meta"}, json.loads(str(f["meta"])))
         except FileNotFoundError:
             err = f"no checkpoint in {folder} (run with --checkpoint-every K, or interrupt with SIGINT/SIGTERM)"
         except (OSError, ValueError, KeyError) as e:

@@ -128,17 +128,16 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
     gap_imposed, gap_end = np.zeros(nsteps), np.zeros(nsteps)
     lam = np.zeros(len(disc.cdofs))
     first = 0
-    gidx = integ.K.getOwnershipRange()[0] + disc.cdofs      # global indices of the constraints
+    fields = {"U": (disc.W, U), "V": (disc.H if integ.block else disc.W, V)}
     if restart:
         if out is None:
             raise checkpoint.CheckpointError("restart needs the output folder of the run")
-        Ug, Vg, act, meta = checkpoint.load(out, comm)
+        data, meta = checkpoint.load(out, comm)
         _check_identity(meta["identity"], identity)
         if meta["step"] > nsteps:
             raise checkpoint.CheckpointError(f"the checkpoint is at step {meta['step']}, past T = {nsteps * dt}")
-        checkpoint.scatter(Ug, U)
-        checkpoint.scatter(Vg, V)
-        integ.solver.active = np.isin(gidx, act)
+        checkpoint.restore(data, fields, comm)
+        integ.solver.active = checkpoint.active_mask(data, disc.cx)
         first = meta["step"]
         info["restarted_from_step"] = first
     writer = xdmf = state = None
@@ -185,7 +184,7 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
 
     def save_checkpoint(n):
         meta = {"identity": identity, "step": n, "t": n * dt}
-        checkpoint.save(out, comm, U, V, gidx[integ.solver.active], meta)
+        checkpoint.save(out, comm, fields, disc.cx[:, integ.solver.active].T, meta)
 
     try:
         if not restart:
