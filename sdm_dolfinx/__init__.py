@@ -18,11 +18,11 @@ for _h in logging.getLogger().handlers:
 from . import membrane  # noqa: E402
 from .discretisation import Discretisation  # noqa: E402
 from .integrator import SCHEMES, Integrator, StepError  # noqa: E402
-from .pairs import PAIRS, Pair, get_pair  # noqa: E402
+from .pairs import MASS_TREATMENTS, PAIRS, Pair, get_pair  # noqa: E402
 from .problem import Problem  # noqa: E402
 from .simulate import Result, simulate  # noqa: E402
 from .vi import VIError  # noqa: E402
 
 __all__ = ["membrane", "Discretisation", "Integrator", "SCHEMES", "StepError", "PAIRS", "Pair", "get_pair",
-           "Problem", "Result", "simulate", "VIError"]
+           "MASS_TREATMENTS", "Problem", "Result", "simulate", "VIError"]
 __version__ = "0.1.0"

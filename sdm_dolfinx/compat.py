@@ -283,9 +283,3 @@ def vtk_mesh(V):
     if hasattr(plot, "vtk_mesh"):  # pragma: no cover
         return plot.vtk_mesh(V)
     return plot.create_vtk_mesh(V)
-
-
-def interpolation_points(V):
-    """The reference interpolation points of V's element (a method in 0.5, a property later)."""
-    pts = V.element.interpolation_points
-    return pts() if callable(pts) else pts

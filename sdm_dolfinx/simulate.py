@@ -43,6 +43,33 @@ class Result:
     V: object = None
     discretisation: object = None
 
+    def displacement(self):
+        """The final displacement U as a dolfinx Function of W^h (for plotting, probing, post-processing)."""
+        return self._function(self.discretisation.W, self.U, "displacement")
+
+    def velocity(self):
+        """The final velocity as a dolfinx Function: Vbar in W^h, or V in H^h for the consistent block variant.
+
+        Only M Vbar is determined by the scheme; with a singular M (dim H^h < dim W^h) Vbar also has
+        a component in Ker(M) that carries no kinetic energy (see docs/outputs.md).
+        """
+        d = self.discretisation
+        space = d.H if (d.mass == "consistent") else d.W
+        return self._function(space, self.V, "velocity")
+
+    def max_energy_deviation(self):
+        """max_n |J^n - J^0| / |J^0| of the discrete energy (Theorem 2: 0 for the midpoint scheme without impact)."""
+        E = np.asarray(self.timeseries["energy"])
+        return float(np.max(np.abs(E - E[0])) / abs(E[0])) if E.size and E[0] != 0 else float("nan")
+
+    @staticmethod
+    def _function(space, vec, name):
+        from dolfinx import fem
+        f = fem.Function(space, name=name)
+        f.x.array[:len(vec.array)] = vec.array
+        f.x.scatter_forward()
+        return f
+
 
 def num_steps(T, dt):
     """Number of steps of length dt in [0, T] (T rounded to a multiple of dt)."""
@@ -68,7 +95,7 @@ class _StopFlag:
 
 
 def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=None, vi_solver="ssn",
-             linear="cg-factor", out=None, write_every=None, progress=False, petsc_options=None,
+             linear="auto", out=None, write_every=None, progress=False, petsc_options=None,
              extra_info=None, checkpoint_every=None, restart=False, handle_signals=False, on_step=None,
              constraint_tol=1e-8):
     """Run ``problem`` with ``pair`` and ``scheme`` from t = 0 to T.
