@@ -26,7 +26,13 @@ from .vi import LINEAR_STRATEGIES, VI_SOLVERS
 
 PROBLEMS = {"membrane": membrane, "disc": disc}
 #: commands that are not a run: name -> module with ``main(argv) -> exit status``
-SUBCOMMANDS = {"inspect": ".wellposed"}
+SUBCOMMANDS = {"inspect": ".wellposed", "figures": ".figures", "energy": ".postprocess"}
+#: one-line descriptions of SUBCOMMANDS for the top-level ``--help`` (their modules are imported only when run)
+SUBCOMMAND_HELP = {
+    "inspect": "measure the inf-sup condition (7) of a problem, pair and mesh (well-posedness)",
+    "figures": "rerun the paper's studies (only what is missing) and regenerate its figures and Table 2",
+    "energy": "recompute a finished run's energy history from its state.h5",
+}
 
 
 class UsageError(Exception):
@@ -34,11 +40,14 @@ class UsageError(Exception):
 
 
 class _Parser(argparse.ArgumentParser):
+    """An ArgumentParser whose errors raise UsageError (one line, status 2) instead of exiting."""
+
     def error(self, message):
         raise UsageError(f"{self.prog}: error: {message}")
 
 
 def _positive_float(text):
+    """argparse type: a finite number > 0."""
     try:
         v = float(text)
     except ValueError:
@@ -49,6 +58,7 @@ def _positive_float(text):
 
 
 def add_run_arguments(p, defaults):
+    """Add the options common to every run command (pair, scheme, dt, T, solver, output, restart) to ``p``."""
     g = p.add_argument_group("discretisation and run")
     g.add_argument("--pair", default=defaults["pair"], choices=list(PAIRS), metavar="PAIR",
                    help=f"(W^h, H^h) pair: {', '.join(PAIRS)} (default {defaults['pair']})")
@@ -62,10 +72,13 @@ def add_run_arguments(p, defaults):
     g.add_argument("--vi-solver", choices=VI_SOLVERS, default="ssn",
                    help="step solver: ssn = semi-smooth Newton / primal-dual active set (default), or PETSc SNES "
                         "vinewtonrsls / vinewtonssls")
-    g.add_argument("--linear", choices=LINEAR_STRATEGIES, default="cg-factor",
-                   help="linear solves of the semi-smooth Newton: cg-factor = one factorisation of the step matrix "
-                        "per run, Krylov on the inactive set (default); lu = refactor each iteration; amg = CG + "
-                        "BoomerAMG")
+    g.add_argument("--linear", choices=LINEAR_STRATEGIES, default="auto",
+                   help="linear solves of the semi-smooth Newton: auto = schur, or amg above 10000 constrained "
+                        "dofs (default); schur = one factorisation of the step matrix per run, the active set by a "
+                        "small dense Schur complement of cached columns K^-1 e_i; cg-factor = one factorisation, CG "
+                        "on the inactive set; lu = refactorise at every Newton iteration; amg = CG + BoomerAMG on "
+                        "the reduced matrix (set up when the active set changes); cg-amg = CG on the inactive set "
+                        "with one BoomerAMG set-up of the step matrix")
     o = p.add_argument_group("output")
     o.add_argument("--out", type=Path, default=None, help="output folder (default output/<problem>)")
     o.add_argument("--write-every", type=int, default=10, metavar="K",
@@ -85,17 +98,26 @@ def add_run_arguments(p, defaults):
 
 
 def build_parser():
+    """The top-level parser and a dict problem name -> its run parser.
+
+    The top-level ``--help`` names every command: the problems (runs, parsed here) and the
+    SUBCOMMANDS, which ``main`` hands to their own modules before argparse sees them (they are
+    registered here without options, for the listing only).
+    """
     parser = _Parser(prog="python -m sdm_dolfinx",
-                     description="The singular dynamic method for dynamic contact (Renard 2010) on dolfinx.")
+                     description="The singular dynamic method for dynamic contact (Renard 2010) on dolfinx.",
+                     epilog="`python -m sdm_dolfinx COMMAND --help` lists the options of a command.")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     subparsers = {}
     for name, mod in PROBLEMS.items():
-        p = sub.add_parser(name, help=(mod.__doc__ or "").strip().splitlines()[0],
+        p = sub.add_parser(name, help="run: " + (mod.__doc__ or "").strip().splitlines()[0],
                            description=(mod.__doc__ or "").strip(),
                            formatter_class=argparse.RawDescriptionHelpFormatter)
         mod.add_arguments(p)
         add_run_arguments(p, mod.DEFAULTS)
         subparsers[name] = p
+    for name, text in SUBCOMMAND_HELP.items():
+        sub.add_parser(name, help=text, add_help=False)
     return parser, subparsers
 
 
@@ -237,7 +259,7 @@ def _restart_args(args, subparser, command):
 def _parse(argv, parser, subparsers):
     args, extra = parser.parse_known_args(argv)
     if args.command is None:
-        raise UsageError(f"{parser.prog}: error: choose a command: {', '.join(PROBLEMS)}")
+        raise UsageError(f"{parser.prog}: error: choose a command: {', '.join([*PROBLEMS, *SUBCOMMANDS])}")
     sub = subparsers[args.command]
     if args.config is not None:
         sub.set_defaults(**load_config(args.config, sub, args.command))
