@@ -41,3 +41,29 @@ clean:
 .PHONY: test-dolfinx09
 test-dolfinx09:
 	NP=$(NP) bash scripts/dolfinx09.sh test
+
+# The paper's figures, Table 2 and an HTML report regenerated from the runs' files (see
+# sdm_dolfinx/figures.py): `make figures` runs the full study into output/study (77 runs, about
+# 45 min on 2 cores, 26 of them the paper's finest disc, 513k dofs, 4.9 GB; resumable: a rerun
+# computes only what is missing) and writes report/; `make figures QUICK=1` (or
+# `make figures-quick`) is the two-minute version -> output/report-quick.
+# FIGURES_ARGS="--disc-max-level 5" stops the disc convergence study at 126k dofs.
+.PHONY: figures figures-quick
+figures: setup
+	nice -n 10 $(PY) -m sdm_dolfinx figures $(if $(QUICK),--quick) $(FIGURES_ARGS)
+
+figures-quick: setup
+	$(PY) -m sdm_dolfinx figures --quick
+
+# ParaView's own reader on real output: installs Debian's paraview and xvfb if missing (about 2 min,
+# ~790 MB), runs a short membrane run, checks every array at every time step with pvpython
+# (Xdmf3ReaderS), renders a PNG under xvfb-run, then runs tests/test_paraview.py. See docs/install.md.
+.PHONY: paraview-check
+paraview-check: setup
+	@command -v pvpython >/dev/null && command -v xvfb-run >/dev/null || { \
+	  SUDO=""; [ "$$(id -u)" -eq 0 ] || SUDO="sudo"; \
+	  echo "paraview-check: installing the Debian packages paraview xvfb"; \
+	  $$SUDO apt-get update -qq && $$SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq paraview xvfb >/dev/null; }
+	$(PY) -m sdm_dolfinx membrane --N 10 --dt 1e-3 --T 0.5 --write-every 20 --out output/paraview-check --overwrite --quiet
+	xvfb-run -a pvpython scripts/paraview_check.py output/paraview-check --json output/paraview-check/paraview.json --png output/paraview-check/paraview.png
+	$(PY) -m pytest -q tests/test_paraview.py

@@ -16,7 +16,11 @@ both with the midpoint scheme and contact at the boundary vertices, at dt = 1e-4
   stress at A against time, one figure per pair (the paper's Figs. 14 and 15);
 * ``disc_mesh.png``: the curved quadratic mesh with its contact vertices (Fig. 13);
 * ``disc_deformed.png``: the P2/P1 disc at the moment of maximal compression (largest
-  total contact force), coloured by the von Mises stress, at true scale with a zoom.
+  total contact force), coloured by the von Mises stress, at true scale with a zoom;
+* ``disc_stress.png`` and ``disc_impact.gif``: the same moment and an animation of the
+  impact (every third step of dt = 1e-4 s around the contact), rendered off-screen with
+  pyvista when it is installed (else matplotlib) from the run's files in
+  ``disc_P2-P1_dt0.0001/`` (see ``sdm_dolfinx/render.py``).
 
 With the ``CI`` variable set the runs stop at t = 14 ms (after the impact's peak).
 Run with ``python demos/disc.py [--level 1] [--out DIR]``; ``mpirun -n 2`` works too.
@@ -90,6 +94,27 @@ def compression_state(level, pair, dt, T):
     n = int(np.argmax(ts["contact_force"]))
     r = simulate(disc.Problem(level=level), pair=pair, dt=dt, T=n * dt)
     return n * dt, ts["contact_force"][n], cell_data(r.discretisation, r.U)
+
+
+def impact_pictures(level, T, out, dt=1e-4):
+    """Run P2/P1 with fields written every step, then (rank 0) a picture at maximal compression
+    and a GIF of the impact, from one time step before the first contact to one after the last."""
+    from sdm_dolfinx import render
+    folder = Path(out) / f"disc_P2-P1_dt{dt:g}"
+    r = simulate(disc.Problem(level=level), pair="P2/P1", scheme="midpoint", dt=dt, T=T, out=folder,
+                 write_every=1)
+    if COMM.rank != 0:
+        return None
+    ts = r.timeseries
+    on = np.flatnonzero(ts["contact_force"] > 0)
+    t_max = ts["t"][int(np.argmax(ts["contact_force"]))]
+    how = render.picture(folder, Path(out) / "disc_stress.png", time=t_max)
+    t0, t1 = ts["t"][max(on[0] - 10, 0)], ts["t"][min(on[-1] + 10, len(ts["t"]) - 1)]
+    series = render.read_xdmf(folder)
+    times = [t for t in series.times if t0 - 1e-12 <= t <= t1 + 1e-12][::3]
+    render.animation(series, Path(out) / "disc_impact.gif", times=times, size=(400, 400), fps=8)
+    return {"png": Path(out) / "disc_stress.png", "gif": Path(out) / "disc_impact.gif", "how": how,
+            "t_max": t_max, "frames": len(times)}
 
 
 if __name__ == "__main__":
@@ -204,3 +229,8 @@ if __name__ == "__main__":
         fig.savefig(args.out / "disc_deformed.png", dpi=120)
         plt.close(fig)
         print(f"wrote {args.out / 'disc_deformed.png'}")
+
+    # -- 3-D pictures: the disc at maximal compression and an animation of the impact ---------
+    made = impact_pictures(args.level, args.T, args.out)
+    if COMM.rank == 0:
+        print(f"wrote {made['png']} and {made['gif']} ({made['frames']} frames, {made['how']})")

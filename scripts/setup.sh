@@ -25,3 +25,13 @@ if ! (cd / && "$ROOT/.venv/bin/python" -c "import sdm_dolfinx") 2>/dev/null; the
   .venv/bin/python -m pip install -q --no-build-isolation --no-deps -e .
 fi
 .venv/bin/python -c "import dolfinx, sdm_dolfinx; print('setup: dolfinx', dolfinx.__version__, '- sdm_dolfinx', sdm_dolfinx.__version__)"
+# Optional extras for pictures and animations (sdm_dolfinx/render.py): pyvista with its VTK wheel
+# (renders off-screen through EGL/OSMesa, no display needed) and imageio. About 25 s and 600 MB
+# once; a quick look-up when present. Numpy stays Debian's (dolfinx is built against it).
+# SDM_NO_EXTRAS=1 skips them; a failure only warns (everything falls back to matplotlib).
+if [ -z "${SDM_NO_EXTRAS:-}" ] && ! .venv/bin/python -c "import importlib.util as u, sys; sys.exit(not (u.find_spec('pyvista') and u.find_spec('imageio')))" 2>/dev/null; then
+  echo "setup: installing the optional extras pyvista, imageio into .venv (SDM_NO_EXTRAS=1 skips)"
+  NUMPY_PIN=$(.venv/bin/python -c "import numpy; print(numpy.__version__)")
+  .venv/bin/python -m pip install -q pyvista imageio "numpy==$NUMPY_PIN" \
+    || echo "setup: warning: pyvista could not be installed; pictures fall back to matplotlib"
+fi

@@ -49,6 +49,7 @@ def mesh_fingerprint(msh):
 
 
 def same_fingerprint(a, b, rtol=1e-12):
+    """True when two mesh fingerprints (vertex and cell counts, coordinate sums) agree to ``rtol``."""
     return (a["vertices"] == b["vertices"] and a["cells"] == b["cells"]
             and all(abs(a[k] - b[k]) <= rtol * max(1.0, abs(b[k])) for k in ("x_sum", "x2_sum")))
 

@@ -47,6 +47,7 @@ def cell_name(msh):
 
 
 def function_space(msh, elem):
+    """A function space of ``elem`` on ``msh`` (``FunctionSpace`` in 0.5, ``functionspace`` from 0.7)."""
     if NEW_API:  # pragma: no cover
         return fem.functionspace(msh, elem)
     return fem.FunctionSpace(msh, elem)
@@ -60,6 +61,7 @@ def petsc_vec(f):
 
 
 def form(expr, jit_options=None):
+    """``fem.form`` with JIT options (``jit_params`` in 0.5, ``jit_options`` later)."""
     if NEW_API:  # pragma: no cover
         return fem.form(expr, jit_options=jit_options)
     return fem.form(expr, jit_params=jit_options)
@@ -72,12 +74,14 @@ def petsc_module():
 
 
 def assemble_matrix(a, bcs=(), diagonal=1.0):
+    """Assemble and finalise the PETSc matrix of the bilinear form ``a`` (``diagonal`` on Dirichlet rows)."""
     A = petsc_module().assemble_matrix(a, list(bcs), diagonal)
     A.assemble()
     return A
 
 
 def assemble_vector(L):
+    """Assemble the PETSc vector of the linear form ``L``, ghost contributions added to their owners."""
     b = petsc_module().assemble_vector(L)
     b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
     return b
@@ -114,6 +118,7 @@ def model_to_mesh(model, comm, rank, gdim):
 
 
 def bounding_box_tree(msh):
+    """The cells' bounding-box tree of ``msh`` (``BoundingBoxTree`` in 0.5, ``bb_tree`` later)."""
     if NEW_API:  # pragma: no cover
         return geometry.bb_tree(msh, msh.topology.dim)
     return geometry.BoundingBoxTree(msh, msh.topology.dim)

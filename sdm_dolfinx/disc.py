@@ -169,6 +169,7 @@ def check_arguments(args):
 
 
 def problem_from_args(args, comm):
+    """The disc :func:`Problem` from the command line's parsed options."""
     return Problem(level=args.level, h=args.h, radius=args.radius, height=args.height, rho=args.rho,
                    lame_lambda=args.lame_lambda, lame_mu=args.lame_mu, gravity=args.gravity, v0=args.v0,
                    contact_zone=args.contact_zone, with_contact=not args.no_contact, comm=comm)

@@ -104,5 +104,6 @@ def check_arguments(args):
 
 
 def problem_from_args(args, comm):
+    """The membrane :func:`Problem` from the command line's parsed options."""
     return Problem(N=args.N, f=args.f, u0=args.u0, g=args.g, obstacle=args.obstacle, diagonal=args.diagonal,
                    probe=tuple(args.probe), comm=comm, with_obstacle=not args.no_obstacle)

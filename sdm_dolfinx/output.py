@@ -83,11 +83,13 @@ class CSVWriter:
                 self.fh.write(",".join(self.columns) + "\n")
 
     def write(self, row):
+        """Append one row (a dict column -> value) and flush it (rank 0 only)."""
         if self.fh is not None:
             self.fh.write(",".join(_fmt(row[c]) for c in self.columns) + "\n")
             self.fh.flush()
 
     def close(self):
+        """Close the file (rank 0 only)."""
         if self.fh is not None:
             self.fh.close()
             self.fh = None
@@ -173,6 +175,7 @@ class StateWriter:
         self.comm.Barrier()
 
     def write(self, U, V, step, t):
+        """Gather U and V to rank 0 and append them, with the step and time, to state.h5."""
         from .checkpoint import gather
         u, v = gather(U, self.comm), gather(V, self.comm)
         if self.comm.rank == 0:
@@ -205,6 +208,11 @@ class XDMFWriter:
         self.a1 = fem.Function(disc.Q1, name="active")
 
     def write(self, U, V, lam, active, t):
+        """Write the displacement, velocity, contact stress and active set at time t (collective).
+
+        The fields are interpolated into P1 (vertex values) so that dolfinx 0.5 and 0.10 write the same file;
+        the contact stress is each constrained vertex's multiplier divided by its lumped measure.
+        """
         d = self.disc
         self.uW.x.array[:len(U.array)] = U.array
         self.uW.x.scatter_forward()
@@ -223,4 +231,5 @@ class XDMFWriter:
             self.file.write_function(f, float(t))
 
     def close(self):
+        """Close the XDMF file (collective)."""
         self.file.close()

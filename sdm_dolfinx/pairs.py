@@ -26,12 +26,14 @@ class Pair:
     well_posed: str
 
     def w_element(self, cell, shape=()):
+        """The element of W^h (displacement) on ``cell`` with value shape ``shape``."""
         family, degree = self.w
         if family == "P+":
             return compat.p1_bubble_element(cell, shape)
         return compat.element("Lagrange", cell, degree, shape)
 
     def h_element(self, cell, shape=()):
+        """The element of H^h (velocity) on ``cell``, or None for the standard method (H^h = W^h)."""
         if self.h is None:
             return None
         family, degree = self.h
@@ -49,6 +51,7 @@ class Pair:
         return "diagonal" if self.h[1] == 0 else "lumped"
 
     def allowed_masses(self):
+        """The C treatments this pair accepts (see :data:`MASS_TREATMENTS`)."""
         if self.standard:
             return ("standard",)
         if self.h[1] == 0:

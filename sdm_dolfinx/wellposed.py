@@ -352,6 +352,7 @@ SWEEP_HEADER = (f"{'pair':8s} {'param':>6s} {'h':>9s} {'dim W':>7s} {'dim H':>7s
 
 
 def sweep_line(r):
+    """One line of the ``--sweep`` table for a result row."""
     return (f"{r['pair']:8s} {str(r['sweep_value']):>6s} {r['h']:9.4g} {r['dim_W']:7d} {r['dim_H']:7d} {r['N_g']:6d} "
             f"{r['dim_ker_B']:9d} {_fmt_beta(r['beta']):>10s} {r['method_short']:>9s}  {r['verdict']}")
 
@@ -388,6 +389,7 @@ def plot_sweep(rows, path, title=""):
 
 
 def r_tol(rows):
+    """The verdict tolerance on beta used for ``rows`` (the default when there are none)."""
     return rows[0]["tolerance"] if rows else TOL
 
 
@@ -427,6 +429,7 @@ def _nonneg_float(text):
 
 
 def build_parser(problem, problems):
+    """The ``inspect`` parser, with the options of ``problem`` (one of ``problems``)."""
     from .cli import _Parser
     p = _Parser(prog="python -m sdm_dolfinx inspect",
                 description="Measure the inf-sup condition (7) of Renard (2010) for a problem, a pair and a mesh: "
