@@ -197,12 +197,17 @@ def sparse_factor_matrix(K, A, B, c_lumped, alpha, ddofs, ratio=0.6):
 
 
 #: on several ranks a factorised matrix with at most this many rows is gathered on every
-#: rank and factorised there (``-sdm_factor_redundant 0|1`` overrides): MUMPS's distributed
-#: solve exchanges messages at every node of the top of its elimination tree, and on a
-#: shared or oversubscribed machine each wait yields the core for a time slice (measured:
-#: 2 ranks 100x slower than 1 on a 1600-dof membrane at load 9). A redundant solve needs one
-#: allgather of the right-hand side, and the columns of K^-1 need no communication at all.
-REDUNDANT_MAX_ROWS = 300_000
+#: rank and factorised there (``-sdm_factor_redundant 0|1`` overrides); larger ones are
+#: factorised by MUMPS distributed over the ranks. Small systems are latency-bound: MUMPS's
+#: distributed solve exchanges messages at every node of the top of its elimination tree,
+#: while a redundant solve needs one allgather of the right-hand side and the columns of
+#: K^-1 need no communication at all. Measured on a quiet 2-core machine (solve times,
+#: 1 rank / 2 ranks redundant / 2 ranks distributed): membrane P1+/P0 N = 80 (19k rows,
+#: CHOLMOD) 0.31 / 1.39 / 12.7 ms; disc level 4 (57k rows of the augmented matrix)
+#: 28 / 36 / 21 ms; level 5 (158k rows) 79-87 / 79 / 53-62 ms. On an oversubscribed machine the
+#: distributed solve is much worse (2 ranks 100x slower than 1 on a 1600-dof membrane at
+#: load 9: each wait yields the core for a scheduler slice); ``-sdm_factor_redundant 1``.
+REDUNDANT_MAX_ROWS = 50_000
 
 
 class Factorisation:

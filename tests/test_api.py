@@ -201,3 +201,11 @@ def test_top_level_help_names_every_command():
         problem = f"--help does not name (with a description) {absent}" if absent else None
     problem = COMM.bcast(problem, root=0)
     assert problem is None, problem
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="runs every command's --help in child processes: serial only")
+def test_cli_reference_is_current():
+    """docs/cli.md is exactly what scripts/gen_cli_doc.py makes from today's --help texts."""
+    p = subprocess.run([sys.executable, str(ROOT / "scripts" / "gen_cli_doc.py"), "--check"], capture_output=True,
+                       text=True, env=clean_env(), cwd=ROOT, timeout=300)
+    assert p.returncode == 0, f"docs/cli.md is stale: run scripts/gen_cli_doc.py ({p.stdout}{p.stderr})"
