@@ -498,8 +498,15 @@ class SemismoothNewton:
             self._KA, self._KA_mask = self._reduced_matrix(), self.mask.copy()
             self.ksp.setOperators(self._KA)
         if self.linear == "lu":     # MUMPS reads its options at each factorisation
-            with _options(self.prefix, {"mat_mumps_icntl_14": str(MUMPS_ICNTL14)}):
-                self.ksp.solve(rhs, x)
+            pct = PETSc.Options().getInt(self.prefix + "mat_mumps_icntl_14", MUMPS_ICNTL14)
+            for attempt in range(5):     # as in factorise: a larger work space after -8/-9
+                with _options(self.prefix, {"mat_mumps_icntl_14": str(pct)}, force=attempt > 0):
+                    self.ksp.solve(rhs, x)
+                if self.ksp.getConvergedReason() != PETSc.KSP.ConvergedReason.DIVERGED_PCSETUP_FAILED:
+                    break
+                self.ksp.getPC().reset()
+                self.ksp.setOperators(self._KA)
+                pct *= 2
         else:
             self.ksp.solve(rhs, x)
         reason = self.ksp.getConvergedReason()
