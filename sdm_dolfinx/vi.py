@@ -98,20 +98,31 @@ def factor_package(comm, spd):
 MUMPS_ICNTL14 = 50
 
 
+def _mumps_margins(prefix, retries=4):
+    """The successive attempts of a MUMPS factorisation: (attempt, ICNTL(14), options context).
+
+    ICNTL(14) starts from ``-<prefix>mat_mumps_icntl_14`` or :data:`MUMPS_ICNTL14` and doubles
+    at each retry; a retry overrides even a value given on the command line.
+    """
+    pct = PETSc.Options().getInt(prefix + "mat_mumps_icntl_14", MUMPS_ICNTL14)
+    for attempt in range(retries + 1):
+        yield attempt, pct, _options(prefix, {"mat_mumps_icntl_14": str(pct)}, force=attempt > 0)
+        pct *= 2
+
+
 def factorise(M, comm, prefix, kind="cholesky", package="mumps", agree=None, retries=4):
     """A ``preonly`` KSP on ``comm`` holding a factorisation of M (set up: the factorisation
     is done).
 
     ``-<prefix>pc_factor_mat_solver_type`` and the other options under ``prefix`` override
     ``kind`` and ``package``. A MUMPS factorisation that runs out of work space (INFOG(1) =
-    -8 or -9) is redone with twice the margin ICNTL(14) (from :data:`MUMPS_ICNTL14`), up to
+    -8 or -9) is redone with twice the margin ICNTL(14) (:func:`_mumps_margins`), up to
     ``retries`` times; any other failure raises :class:`VIError` naming MUMPS's error code.
     ``agree``: the mpi4py communicator whose ranks retry or fail together (default: comm's).
     """
     if agree is None:
         agree = comm.tompi4py() if hasattr(comm, "tompi4py") else comm
-    pct = PETSc.Options().getInt(prefix + "mat_mumps_icntl_14", MUMPS_ICNTL14)
-    for attempt in range(retries + 1):
+    for attempt, pct, margin in _mumps_margins(prefix, retries):
         ksp = PETSc.KSP().create(comm)
         ksp.setOptionsPrefix(prefix)
         ksp.setOperators(M)
@@ -119,8 +130,7 @@ def factorise(M, comm, prefix, kind="cholesky", package="mumps", agree=None, ret
         pc = ksp.getPC()
         pc.setType(kind)
         pc.setFactorSolverType(package)
-        # a retry overrides even a value given on the command line
-        with _options(prefix, {"mat_mumps_icntl_14": str(pct)}, force=attempt > 0):
+        with margin:
             ksp.setFromOptions()
             ksp.setUp()
         # PC.getFailedReason is petsc4py >= 3.20; MUMPS reports through INFOG(1) on every version
@@ -132,7 +142,6 @@ def factorise(M, comm, prefix, kind="cholesky", package="mumps", agree=None, ret
             return ksp
         ksp.destroy()
         if worst in (-8, -9) and attempt < retries:
-            pct *= 2
             continue
         what = f"MUMPS INFOG(1) = {worst}, ICNTL(14) = {pct}" if worst else f"PC failed reason {reason}"
         raise VIError(f"the factorisation of the {M.getSize()[0]}-row step matrix failed ({what}); "
@@ -498,15 +507,13 @@ class SemismoothNewton:
             self._KA, self._KA_mask = self._reduced_matrix(), self.mask.copy()
             self.ksp.setOperators(self._KA)
         if self.linear == "lu":     # MUMPS reads its options at each factorisation
-            pct = PETSc.Options().getInt(self.prefix + "mat_mumps_icntl_14", MUMPS_ICNTL14)
-            for attempt in range(5):     # as in factorise: a larger work space after -8/-9
-                with _options(self.prefix, {"mat_mumps_icntl_14": str(pct)}, force=attempt > 0):
+            for _, _, margin in _mumps_margins(self.prefix):   # as in factorise
+                with margin:
                     self.ksp.solve(rhs, x)
                 if self.ksp.getConvergedReason() != PETSc.KSP.ConvergedReason.DIVERGED_PCSETUP_FAILED:
                     break
                 self.ksp.getPC().reset()
                 self.ksp.setOperators(self._KA)
-                pct *= 2
         else:
             self.ksp.solve(rhs, x)
         reason = self.ksp.getConvergedReason()
