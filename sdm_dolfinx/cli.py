@@ -46,6 +46,28 @@ class _Parser(argparse.ArgumentParser):
         raise UsageError(f"{self.prog}: error: {message}")
 
 
+def parse_or_help(parser, argv, comm):
+    """A subcommand's arguments, or None after printing its ``--help`` (on rank 0).
+
+    Raises:
+        UsageError: bad arguments (``parser`` is a :class:`_Parser`).
+    """
+    if "-h" in argv or "--help" in argv:
+        if comm.rank == 0:
+            parser.print_help()
+        return None
+    return parser.parse_args(argv)
+
+
+def report_usage_error(prog, error, comm):
+    """Print a :class:`UsageError` as one line on stderr (rank 0), prefixed with ``prog``;
+    returns the exit status 2."""
+    if comm.rank == 0:
+        msg = str(error)
+        print(msg if msg.startswith(prog) else f"{prog}: error: {msg}", file=sys.stderr, flush=True)
+    return 2
+
+
 def _positive_float(text):
     """argparse type: a finite number > 0."""
     try:

@@ -1319,7 +1319,7 @@ def make_report(study, runs_dir, out, records, comm=COMM, say=print, meta=None):
 # ----------------------------------------------------------------------- command line
 def main(argv=None):
     """``python -m sdm_dolfinx figures``: returns the exit status (0 ok, 2 bad input, 128+sig interrupted)."""
-    from .cli import UsageError, _Parser
+    from .cli import UsageError, _Parser, parse_or_help, report_usage_error
     from . import compat
     argv = sys.argv[1:] if argv is None else list(argv)
     prog = "python -m sdm_dolfinx figures"
@@ -1337,11 +1337,9 @@ def main(argv=None):
     comm = COMM
     say = (lambda s: print(s, flush=True)) if comm.rank == 0 else (lambda s: None)
     try:
-        if "-h" in argv or "--help" in argv:
-            if comm.rank == 0:
-                parser.print_help()
+        args = parse_or_help(parser, argv, comm)
+        if args is None:
             return 0
-        args = parser.parse_args(argv)
         out = args.out or (Path("output/report-quick") if args.quick else Path("report"))
         runs_dir = args.runs or (Path("output/study-quick") if args.quick else Path("output/study"))
         for p in (out, runs_dir):
@@ -1352,10 +1350,7 @@ def main(argv=None):
                 raise UsageError(f"cannot write to {p}")
         study = make_study(args.quick, args.disc_max_level)
     except UsageError as e:
-        if comm.rank == 0:
-            msg = str(e)
-            print(msg if msg.startswith(prog) else f"{prog}: error: {msg}", file=sys.stderr, flush=True)
-        return 2
+        return report_usage_error(prog, e, comm)
     runs = study.runs()
     if args.dry_run:
         total = 0.0

@@ -495,7 +495,7 @@ def convergence_rate(h, err):
 # ---------------------------------------------------------------------- command line
 def main(argv=None):
     """``python -m sdm_dolfinx energy DIR``: returns the exit status (0, 2 bad input)."""
-    from .cli import UsageError, _Parser
+    from .cli import UsageError, _Parser, parse_or_help, report_usage_error
     comm = MPI.COMM_WORLD
     argv = sys.argv[1:] if argv is None else list(argv)
     prog = "python -m sdm_dolfinx energy"
@@ -504,19 +504,14 @@ def main(argv=None):
                      "print the largest relative difference to DIR/timeseries.csv.")
     parser.add_argument("folder", type=Path, metavar="DIR", help="a run's output folder")
     try:
-        if "-h" in argv or "--help" in argv:
-            if comm.rank == 0:
-                parser.print_help()
+        args = parse_or_help(parser, argv, comm)
+        if args is None:
             return 0
-        args = parser.parse_args(argv)
         for name in ("run.json", "timeseries.csv", "state.h5"):
             if not (args.folder / name).exists():
                 raise UsageError(f"{args.folder} has no {name} (not the output folder of a run)")
     except UsageError as e:
-        if comm.rank == 0:
-            msg = str(e)
-            print(msg if msg.startswith(prog) else f"{prog}: error: {msg}", file=sys.stderr, flush=True)
-        return 2
+        return report_usage_error(prog, e, comm)
     try:
         res = recompute_energy(args.folder, comm)
     except PostprocessError as e:

@@ -504,7 +504,7 @@ def _parse(argv, problems):
 
 def main(argv=None):
     """``python -m sdm_dolfinx inspect ...``: returns the exit status (0, 1 failed measurement, 2 bad input)."""
-    from .cli import UsageError
+    from .cli import UsageError, report_usage_error
     comm = MPI.COMM_WORLD
     argv = sys.argv[1:] if argv is None else list(argv)
     prog = "python -m sdm_dolfinx inspect"
@@ -519,10 +519,7 @@ def main(argv=None):
             return 0
         args, mod = _parse(argv, problems)
     except UsageError as e:
-        if comm.rank == 0:
-            msg = str(e)
-            print(msg if msg.startswith(prog) else f"{prog}: error: {msg}", file=sys.stderr, flush=True)
-        return 2
+        return report_usage_error(prog, e, comm)
 
     def say(text):
         if comm.rank == 0:
