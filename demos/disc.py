@@ -35,7 +35,7 @@ import numpy as np
 import ufl
 from dolfinx import fem
 
-from sdm_dolfinx import compat, disc, simulate
+from sdm_dolfinx import compat, disc, render, simulate
 
 COMM = MPI.COMM_WORLD
 PAIRS = ("P2/P2", "P2/P1")
@@ -99,7 +99,6 @@ def compression_state(level, pair, dt, T):
 def impact_pictures(level, T, out, dt=1e-4):
     """Run P2/P1 with fields written every step, then (rank 0) a picture at maximal compression
     and a GIF of the impact, from one time step before the first contact to one after the last."""
-    from sdm_dolfinx import render
     folder = Path(out) / f"disc_P2-P1_dt{dt:g}"
     r = simulate(disc.Problem(level=level), pair="P2/P1", scheme="midpoint", dt=dt, T=T, out=folder,
                  write_every=1)
@@ -167,36 +166,10 @@ if __name__ == "__main__":
     # -- Figure 13: the mesh ------------------------------------------------------------
     from sdm_dolfinx.discretisation import Discretisation
     mesh_data = cell_data(Discretisation(disc.Problem(level=args.level), "P2/P1"))
-    s = np.linspace(0.0, 1.0, 9)[:, None]
-
-    def curved_edges(xy):
-        """Polylines of the quadratic edges (v1-v2 via node 3, v0-v2 via 4, v0-v1 via 5)."""
-        lines = []
-        for a, m, b in ((1, 3, 2), (0, 4, 2), (0, 5, 1)):
-            pa, pm, pb = xy[:, a, None, :], xy[:, m, None, :], xy[:, b, None, :]
-            lines.append((1 - s) * (1 - 2 * s) * pa + 4 * s * (1 - s) * pm + s * (2 * s - 1) * pb)
-        return np.concatenate(lines)
-
-    def foundation(ax, x0, x1):
-        ax.axhline(0.0, color="k", lw=1.5)
-        ax.fill_between([x0, x1], [-2.0, -2.0], [0.0, 0.0], color="0.85", hatch="///", lw=0)
-
     if COMM.rank == 0:
         xy = mesh_data["xy"]
         fig, ax = plt.subplots(figsize=(5.5, 6))
-        ax.add_collection(LineCollection(curved_edges(xy), colors="k", linewidths=0.6))
-        c = mesh_data["contact"]
-        ax.plot(c[:, 0], c[:, 1], "o", color="tab:red", ms=4, label=f"contact vertices ({len(c)})")
-        a = c[np.argmin(c[:, 1])]
-        ax.annotate("A", a, xytext=(a[0] + 2, a[1] - 1.5), fontsize=12)
-        foundation(ax, -22, 22)
-        ax.set_xlim(-22, 22)
-        ax.set_ylim(-2, 52)
-        ax.set_aspect("equal")
-        ax.set_xlabel("x (mm)")
-        ax.set_ylabel("y (mm)")
-        ax.legend(loc="upper right", fontsize=8)
-        ax.set_title(f"Mesh level {args.level}: {len(xy)} curved P2 triangles")
+        render.draw_disc_mesh(ax, xy, mesh_data["contact"], f"Mesh level {args.level}: {len(xy)} curved P2 triangles")
         fig.tight_layout()
         fig.savefig(args.out / "disc_mesh.png", dpi=120)
         plt.close(fig)
@@ -215,8 +188,8 @@ if __name__ == "__main__":
         for ax, (x0, x1, y0, y1) in zip(axes, ((-22, 22, -2, 42), (-11, 11, -0.5, 7.0))):
             pc = PolyCollection(polys, array=vals, cmap="viridis", edgecolors="none")
             ax.add_collection(pc)
-            ax.add_collection(LineCollection(curved_edges(xy), colors="w", linewidths=0.3, alpha=0.6))
-            foundation(ax, x0, x1)
+            ax.add_collection(LineCollection(render.p2_edge_lines(xy), colors="w", linewidths=0.3, alpha=0.6))
+            render.draw_foundation(ax, x0, x1)
             ax.set_xlim(x0, x1)
             ax.set_ylim(y0, y1)
             ax.set_aspect("equal")

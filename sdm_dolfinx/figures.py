@@ -785,16 +785,6 @@ def fig_disc(study, pair, runs_dir, out):
     return {"key": f"fig{num}", "png": png, "ours": text, "numbers": nums}
 
 
-def _curved_edges(xy):
-    """Polylines of quadratic triangle edges; xy (ncells, 6, 2) in dolfinx's P2 node order."""
-    s = np.linspace(0.0, 1.0, 9)[:, None]
-    lines = []
-    for a, m, b in ((1, 3, 2), (0, 4, 2), (0, 5, 1)):
-        pa, pm, pb = xy[:, a, None, :], xy[:, m, None, :], xy[:, b, None, :]
-        lines.append((1 - s) * (1 - 2 * s) * pa + 4 * s * (1 - s) * pm + s * (2 * s - 1) * pb)
-    return np.concatenate(lines)
-
-
 def _cells_p2(V):
     """Per owned cell, the dof (block) indices of the P2 space V (6 per triangle)."""
     msh = V.mesh
@@ -806,8 +796,8 @@ def _cells_p2(V):
 def fig13(study, runs_dir, out):
     """The level-1 disc mesh (rank 0, rebuilt from the Fig. 15 run)."""
     from .discretisation import Discretisation
+    from . import render
     plt = _plt()
-    from matplotlib.collections import LineCollection
     folder = runs_dir / study.disc["P2/P1"][max(study.disc["P2/P1"])].name
     info = postprocess.read_info(folder, MPI.COMM_SELF)
     problem = postprocess.rebuild_problem(info, MPI.COMM_SELF)
@@ -816,19 +806,8 @@ def fig13(study, runs_dir, out):
     xy = d.W.tabulate_dof_coordinates()[:, :2][cells]
     cx = d.cx[:2].T
     fig, ax = plt.subplots(figsize=(5.5, 6))
-    ax.add_collection(LineCollection(_curved_edges(xy), colors="k", linewidths=0.6))
-    ax.plot(cx[:, 0], cx[:, 1], "o", color="tab:red", ms=3.5, label=f"contact vertices ({len(cx)})")
-    ax.axhline(0.0, color="k", lw=1.5)
-    ax.fill_between([-22, 22], [-2, -2], [0, 0], color="0.85", hatch="///", lw=0)
-    ax.annotate("A", (0, problem.probe[1]), xytext=(1.5, problem.probe[1] - 2.5), fontsize=12)
-    ax.set_xlim(-22, 22)
-    ax.set_ylim(-2, 52)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x (mm)")
-    ax.set_ylabel("y (mm)")
-    ax.legend(loc="upper right", fontsize=8)
     dofs = info["dim_W"]
-    ax.set_title(f"Fig. 13: disc, level 1: {len(cells)} curved P2 triangles, {dofs} dofs")
+    render.draw_disc_mesh(ax, xy, cx, f"Fig. 13: disc, level 1: {len(cells)} curved P2 triangles, {dofs} dofs")
     fig.tight_layout()
     png = _save(fig, out / "fig13_disc_mesh.png")
     ok = abs(dofs - PAPER_DOFS[1]) <= 0.02 * PAPER_DOFS[1]

@@ -528,6 +528,47 @@ def animation(run, path, times=None, scale=None, size=(640, 640), fps=12):
     return "pyvista"
 
 
+# ------------------------------------------------------------------------ matplotlib: the disc mesh
+def p2_edge_lines(xy, samples=9):
+    """Polylines of the curved edges of quadratic triangles, for a matplotlib LineCollection.
+
+    ``xy``: (ncells, 6, 2) node coordinates in dolfinx's P2 order (vertices 0-2, then the
+    midpoint of edge v1-v2, v0-v2, v0-v1); returns (3 ncells, samples, 2).
+    """
+    import numpy as np
+    s = np.linspace(0.0, 1.0, samples)[:, None]
+    lines = []
+    for a, m, b in ((1, 3, 2), (0, 4, 2), (0, 5, 1)):
+        pa, pm, pb = xy[:, a, None, :], xy[:, m, None, :], xy[:, b, None, :]
+        lines.append((1 - s) * (1 - 2 * s) * pa + 4 * s * (1 - s) * pm + s * (2 * s - 1) * pb)
+    return np.concatenate(lines)
+
+
+def draw_foundation(ax, x0, x1):
+    """The rigid foundation y <= 0 (hatched) between x0 and x1 (mm)."""
+    ax.axhline(0.0, color="k", lw=1.5)
+    ax.fill_between([x0, x1], [-2.0, -2.0], [0.0, 0.0], color="0.85", hatch="///", lw=0)
+
+
+def draw_disc_mesh(ax, xy, contact, title):
+    """The disc's curved P2 mesh, its contact vertices (``contact``: (n, 2)), the foundation
+    and the lowest point A, on a matplotlib axes (the paper's Fig. 13)."""
+    import numpy as np
+    from matplotlib.collections import LineCollection
+    ax.add_collection(LineCollection(p2_edge_lines(xy), colors="k", linewidths=0.6))
+    ax.plot(contact[:, 0], contact[:, 1], "o", color="tab:red", ms=3.5, label=f"contact vertices ({len(contact)})")
+    a = contact[np.argmin(contact[:, 1])]
+    ax.annotate("A", a, xytext=(a[0] + 1.5, a[1] - 2.5), fontsize=12)
+    draw_foundation(ax, -22, 22)
+    ax.set_xlim(-22, 22)
+    ax.set_ylim(-2, 52)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+    ax.legend(loc="upper right", fontsize=8)
+    ax.set_title(title)
+
+
 # ------------------------------------------------------------------------ matplotlib fallback
 def _mpl():
     import matplotlib
