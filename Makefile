@@ -39,7 +39,7 @@ clean:
 # The same suite on dolfinx 0.9: Debian 13 (trixie) in a chroot, built once (~5 min, ~3 GB)
 # under /var/cache/sdm_dolfinx and reused; needs root. See scripts/dolfinx09.sh.
 .PHONY: test-dolfinx09
-test-dolfinx09:
+test-dolfinx09: setup
 	NP=$(NP) bash scripts/dolfinx09.sh test
 
 # The paper's figures, Table 2 and an HTML report regenerated from the runs' files (see

@@ -3,7 +3,9 @@
 # host's dolfinx 0.5.2 (Debian 12).
 #
 #   scripts/dolfinx09.sh [test]       build the root file system if needed, then run the pytest
-#                                     suite on 1 rank and on $NP (default 2) ranks inside it
+#                                     suite on 1 rank and on $NP (default 2) ranks inside it, then
+#                                     compare a membrane run between the host's dolfinx and 0.9
+#   scripts/dolfinx09.sh versions     only that comparison (tests/test_versions.py)
 #   scripts/dolfinx09.sh build        only build (or check) the root file system
 #   scripts/dolfinx09.sh run CMD ...  run CMD inside it, in the checkout (e.g. python3 demos/x.py)
 #   scripts/dolfinx09.sh shell        an interactive shell inside it
@@ -45,10 +47,10 @@ die() { echo "dolfinx09: $*" >&2; exit 2; }
 cmd=${1:-test}
 [ $# -gt 0 ] && shift
 case "$cmd" in
-  test|build|shell) ;;
+  test|build|shell|versions) ;;
   run) [ $# -gt 0 ] || die "run needs a command, e.g. scripts/dolfinx09.sh run python3 -c 'import dolfinx'" ;;
-  -h|--help|help) sed -n '2,19p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
-  *) die "unknown command '$cmd' (test, build, run CMD..., shell)" ;;
+  -h|--help|help) sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+  *) die "unknown command '$cmd' (test, versions, build, run CMD..., shell)" ;;
 esac
 
 [ "$(id -u)" -eq 0 ] || die "needs root (debootstrap, mount and chroot): run it as root or with sudo"
@@ -243,12 +245,36 @@ print("dolfinx", dolfinx.__version__, "| basix", basix.__version__, "| ufl", ufl
       "| mpi4py", mpi4py.__version__, "|", MPI.Get_library_version().splitlines()[0])' \
   || die "dolfinx does not import in the chroot; rebuild with SDM_TRIXIE_REBUILD=1"
 
+# The paper's Fig. 2 run (membrane P1+/P0, midpoint, N = 10, dt = 1e-3, T = 0.8) on 1 and $NP ranks
+# in the chroot and on the host (its .venv: dolfinx 0.5.2 on Debian 12), then
+# tests/test_versions.py on the host compares the time series (1e-10 relative).
+compare_versions() {
+  local vdir=output/versions np rc=0
+  local run=(-m sdm_dolfinx membrane --pair P1+/P0 --scheme midpoint --N 10 --dt 1e-3 --T 0.8
+             --write-every 100 --quiet --overwrite)
+  [ -x "$SRC/.venv/bin/python" ] || { echo "dolfinx09: no host .venv to compare with: run make setup first" >&2; return 1; }
+  rm -rf "${SRC:?}/$vdir"
+  mkdir -p "$SRC/$vdir"
+  say "the same membrane run on both versions, 1 and $NP ranks -> $vdir"
+  for np in 1 "$NP"; do
+    in_chroot mpirun -n "$np" python3 "${run[@]}" --out "$vdir/other-np$np" || return 1
+    run_bg env -C "$SRC" OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_btl=self,vader \
+      mpirun -n "$np" .venv/bin/python "${run[@]}" --out "$vdir/host-np$np" || return 1
+  done
+  run_bg env -C "$SRC" SDM_VERSION_RUNS="$vdir" .venv/bin/python -m pytest -q -p no:cacheprovider \
+    tests/test_versions.py || rc=$?
+  return "$rc"
+}
+
 case "$cmd" in
   build) ;;
   shell)   # in the foreground: it owns the terminal
     chroot_env
     chroot "$ROOTFS" /usr/bin/env -i "${CHROOT_ENV[@]}" /bin/sh -c 'cd "$0" && exec bash -i' "$INNER_SRC" ;;
   run) in_chroot "$@" ;;
+  versions)
+    compare_versions || { say "FAILED: the time series differ between the host's dolfinx and 0.9"; exit 1; }
+    say "the membrane time series agree between the host's dolfinx and 0.9 (tests/test_versions.py)" ;;
   test)
     rc1=0; rc2=0
     say "pytest on 1 rank"
@@ -261,5 +287,7 @@ case "$cmd" in
     say "$NP ranks: exit $rc2 in $((SECONDS - t)) s"
     [ "$rc1" -eq 0 ] && [ "$rc2" -eq 0 ] || { say "FAILED on dolfinx 0.9 (1 rank: $rc1, $NP ranks: $rc2)"; exit 1; }
     say "passed on dolfinx 0.9 (1 and $NP ranks)"
+    compare_versions || { say "FAILED: the time series differ between the host's dolfinx and 0.9"; exit 1; }
+    say "the membrane time series agree between the host's dolfinx and 0.9 (tests/test_versions.py)"
     ;;
 esac
