@@ -253,6 +253,70 @@ def make_study(quick=False, disc_max_level=None):
     return s
 
 
+# ------------------------------------------------------------------- data/paper/*.toml
+def _toml_value(v):
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, float):
+        return repr(v)
+    return str(v)
+
+
+def _config_text(run, title):
+    lines = [f"# Renard 2010, {title}", "# generated from sdm_dolfinx.figures.make_study by "
+             "scripts/gen_paper_configs.py: do not edit by hand",
+             f"# python -m sdm_dolfinx {run.command} --config THIS_FILE --out DIR", f'problem = "{run.command}"']
+    lines += [f"{k} = {_toml_value(v)}" for k, v in run.options]
+    return "\n".join(lines) + "\n"
+
+
+def _dt(dt):
+    return f"{dt:.0e}".replace("e-0", "e-") if float(f"{dt:.0e}") == dt else f"{dt:g}"
+
+
+def paper_configurations(study=None):
+    """The runs of the full study (the paper's figures and tables) as TOML configuration
+    files: file name -> text. ``data/paper/`` holds exactly these (a test checks it)."""
+    s = study or make_study()
+    out = {}
+
+    def put(name, run, title):
+        if run.command == "membrane":
+            o = run.opts
+            mesh = f"h = 1/{o['N']} ({o['diagonal']} diagonals)"
+            mass = ", consistent C (the (U, V) system (4))" if o.get("mass") == "consistent" else ""
+            title = f"{title}: {o['pair']}{mass}, {o['scheme']}, {mesh}, dt = {o['dt']:g}"
+        out[name + ".toml"] = _config_text(run, title)
+
+    put("membrane_fig01_P1plus-P0_N20", s.fig1, "Fig. 1 (the membrane during its first impact)")
+    for pair, fig in MEMBRANE_PAIRS.items():
+        for dt, run in s.pairs[pair].items():
+            put(f"membrane_fig{fig:02d}_{_slug(pair)}_dt{_dt(dt)}", run, f"Fig. {fig}")
+    for pair, fig in BE_PAIRS.items():
+        for dt, run in s.be[pair].items():
+            put(f"membrane_fig{fig:02d}_{_slug(pair)}_be_dt{_dt(dt)}", run, f"Fig. {fig}")
+    for N, run in s.fig9.items():
+        put(f"membrane_fig09_P1-P0_be_N{N}", run, "Fig. 9")
+    for pair, runs in s.fig10.items():
+        for N, run in runs.items():
+            put(f"membrane_fig10_{_slug(pair)}_N{N}", run, "Fig. 10 (dt/h fixed)")
+    for pair, by_N in s.fig11.items():
+        for N, runs in by_N.items():
+            for ratio, run in runs.items():
+                put(f"membrane_fig11_{_slug(pair)}_N{N}_dt-over-h{ratio:g}", run, f"Fig. 11 (dt/h = {ratio:g})")
+    for pair, fig in (("P2/P2", 14), ("P2/P1", 15)):
+        for dt, run in s.disc[pair].items():
+            mass = ", consistent C" if run.opts.get("mass") == "consistent" else ", standard mass"
+            put(f"disc_table1_fig{fig}_{_slug(pair)}_dt{_dt(dt)}", run,
+                f"Table 1 and Fig. {fig}: the disc, {pair}{mass}, midpoint, level 1 (h ~ 2 mm), dt = {dt:g} s")
+    for lev, run in s.conv.items():
+        dt, h, dofs = PAPER_TABLE2[lev][:3]
+        put(f"disc_table2_level{lev}", run,
+            f"Table 2, line {lev} (Fig. 16): P2/P1, consistent C, midpoint, h = {h:g} mm ({dofs} dofs in the paper), "
+            f"dt = {dt:g} s")
+    return out
+
+
 # ----------------------------------------------------------------------------- running
 def _read_json(path):
     try:

@@ -191,15 +191,43 @@ def test_config_file_and_command_line_override(mpi_tmp_path):
     assert info["pair"] == "P2/P1" and info["problem"]["parameters"]["N"] == 5 and info["steps"] == 5
 
 
-@pytest.mark.parametrize("name", sorted(p for p in os.listdir(os.path.join(os.path.dirname(__file__), "..", "data",
-                                                                             "paper")) if p.endswith(".toml")))
+PAPER_DIR = os.path.join(os.path.dirname(__file__), "..", "data", "paper")
+
+
+@pytest.mark.parametrize("name", sorted(p for p in os.listdir(PAPER_DIR) if p.endswith(".toml")))
 def test_paper_configurations_are_valid(name):
-    """Every configuration in data/paper parses and passes the checks (not run here)."""
-    path = os.path.join(os.path.dirname(__file__), "..", "data", "paper", name)
+    """Every configuration in data/paper parses, passes the checks, and gives exactly the
+    options of the run that the figures study (the report) computes for it (not run here)."""
+    from sdm_dolfinx import figures
     parser, subparsers = cli.build_parser()
     problem = name.split("_")[0]
-    defaults = cli.load_config(path, subparsers[problem], problem)
-    assert {"pair", "dt", "T"} <= set(defaults)
+    path = os.path.join(PAPER_DIR, name)
+    args, _ = cli._parse([problem, "--config", path], parser, subparsers)
+    # the study's run whose options this file holds
+    matches = [r for r in figures.make_study().runs() if r.command == problem and all(
+        figures._same(getattr(args, k.replace("-", "_")), v) for k, v in r.options)]
+    assert matches, f"{name} describes no run of the study"
+    run = matches[0]
+    # and nothing else: every key of the file is an option of that run
+    keys = {line.split(" = ")[0] for line in open(path) if " = " in line and not line.startswith("#")}
+    assert keys - {"problem"} == {k for k, _ in run.options}
+    assert args.pair in figures.WELL_POSED and args.dt > 0 and args.T >= args.dt
+
+
+def test_paper_configurations_are_current():
+    """data/paper holds exactly the study's runs (figures 1-11, 14-16, Tables 1-2):
+    regenerate with scripts/gen_paper_configs.py after changing the study."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location(
+        "gen_paper_configs", os.path.join(os.path.dirname(__file__), "..", "scripts", "gen_paper_configs.py"))
+    gen = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(gen)
+    files = gen.expected()
+    assert gen.differences(files) == []
+    names = " ".join(files)
+    for fig in ("fig01", *(f"fig{k:02d}" for k in range(2, 12)), "table1_fig14", "table1_fig15",
+                *(f"table2_level{k}" for k in range(1, 7))):
+        assert fig in names, fig
 
 
 def test_restart_continues_the_disc_exactly(mpi_tmp_path):
