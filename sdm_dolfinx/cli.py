@@ -115,8 +115,11 @@ def add_run_arguments(p, defaults):
     r.add_argument("--restart", type=Path, default=None, metavar="DIR",
                    help="continue the run in DIR from its checkpoint with the parameters of DIR/run.json "
                         "(same number of ranks)")
-    p.epilog = ("PETSc options of the step solver can be added as -sdm_<option> (semi-smooth Newton: "
-                "-sdm_ksp_*, -sdm_factor_pc_factor_mat_solver_type; SNES: -sdm_snes_*).")
+    p.epilog = ("PETSc options of the step solver can be added as -sdm_<option>: -sdm_vi_rtol (default 1e-10, "
+                "complementarity tolerance relative to the right-hand side), -sdm_vi_max_it (default 500 for "
+                "ssn, 60 for SNES), -sdm_vi_monitor (a line per iteration); semi-smooth Newton: -sdm_ksp_*, "
+                "-sdm_factor_pc_factor_mat_solver_type; SNES (--vi-solver vinewtonrsls): -sdm_snes_* "
+                "(e.g. -sdm_snes_monitor), -sdm_ksp_*, -sdm_pc_*.")
 
 
 def build_parser():
@@ -192,8 +195,28 @@ def _petsc_overrides(extra):
         if i + 1 < len(extra) and not extra[i + 1].startswith("-sdm_"):
             value = extra[i + 1]
             i += 1
+        _check_vi_option(key, value)
         opts.setValue(key[1:], value if value is not None else "")
         i += 1
+
+
+#: the step solver's own options (see vi._vi_tolerances): name -> (type, test, allowed values)
+VI_OPTIONS = {"-sdm_vi_rtol": (float, lambda v: 0 < v < 1, "a number in (0, 1)"),
+              "-sdm_vi_max_it": (int, lambda v: v >= 1, "an integer >= 1"),
+              "-sdm_vi_monitor": (str, lambda v: v.lower() in ("", "1", "0", "true", "false", "yes", "no"),
+                                  "true or false (or no value)")}
+
+
+def _check_vi_option(key, value):
+    if key not in VI_OPTIONS:
+        return
+    kind, ok, allowed = VI_OPTIONS[key]
+    try:
+        good = ok(kind(value if value is not None else ""))
+    except ValueError:
+        good = False
+    if not good:
+        raise UsageError(f"{key}: {value!r} is not {allowed}")
 
 
 def _config_value(path, action, key, value):

@@ -385,6 +385,22 @@ def choose_strategy(num_constraints, spd):
     return "schur" if num_constraints <= SCHUR_MAX_CONSTRAINTS or not spd else "amg"
 
 
+def _vi_tolerances(prefix, rtol, max_it, options=None):
+    """The step solver's own settings, overridable as PETSc options for either VI solver:
+    ``-<prefix>vi_rtol`` (complementarity tolerance relative to max|b|),
+    ``-<prefix>vi_max_it`` (iterations per step) and ``-<prefix>vi_monitor`` (one line per
+    iteration on rank 0). The command line wins over ``options`` (keys without the
+    prefix), which wins over the arguments."""
+    opts = PETSc.Options()
+    with _options(prefix, {k: v for k, v in (options or {}).items() if k.startswith("vi_")}):
+        rtol = opts.getReal(prefix + "vi_rtol", rtol)
+        max_it = opts.getInt(prefix + "vi_max_it", max_it)
+        monitor = opts.getBool(prefix + "vi_monitor", False)
+    if not (0 < rtol < 1) or max_it < 1:
+        raise VIError(f"-{prefix}vi_rtol must be in (0, 1) and -{prefix}vi_max_it >= 1 (got {rtol}, {max_it})")
+    return rtol, max_it, monitor
+
+
 class SemismoothNewton:
     """Primal-dual active set (semi-smooth Newton) solver for the step LCP.
 
@@ -428,7 +444,7 @@ class SemismoothNewton:
             linear = choose_strategy(self.num_constraints, symmetric_positive)
         self.spd, self.linear, self.prefix = symmetric_positive, linear, prefix
         self.factor_matrix = factor_matrix
-        self.rtol, self.max_it = rtol, max_it
+        self.rtol, self.max_it, self.monitor = _vi_tolerances(prefix, rtol, max_it, options)
         self.mask = np.zeros(K.getLocalSize()[0], dtype=bool)     # active entries of x
         self.active = np.zeros(len(self.cdofs), dtype=bool)          # active constraints
         self.lam = np.zeros(len(self.cdofs))
@@ -663,6 +679,11 @@ class SemismoothNewton:
             infeasible = np.where(active, lam < -tol_lam, xc < lb - tol_x)
             n_inf = self.comm.allreduce(int(np.count_nonzero(infeasible)), op=MPI.SUM)
             self.lam, self.active = lam, active
+            if self.monitor:
+                n_act = self.comm.allreduce(int(np.count_nonzero(active)), op=MPI.SUM)
+                if self.comm.rank == 0:
+                    print(f"  {it:3d} semi-smooth Newton: {n_act} active, {n_inf} infeasible "
+                          f"(tolerance {tol_lam:.3e})", flush=True)
             if n_inf == 0:
                 if by_schur:
                     self._schur_finish(b, x, active)
@@ -698,11 +719,12 @@ class SnesVI:
     (STYLE pitfall). Known to cycle on P2/P1 at the first impact; kept for comparison.
     """
 
-    def __init__(self, K, cdofs, lb, symmetric_positive=True, snes_type="vinewtonrsls", prefix="sdm_snes_",
+    def __init__(self, K, cdofs, lb, symmetric_positive=True, snes_type="vinewtonrsls", prefix="sdm_",
                  options=None, rtol=1e-10, max_it=60):
         self.K, self.comm = K, K.getComm().tompi4py()
         self.cdofs = np.asarray(cdofs, dtype=np.int32)
         self.lb = np.asarray(lb)
+        rtol, max_it, monitor = _vi_tolerances(prefix, rtol, max_it, options)
         self.rtol, self.prefix = rtol, prefix
         self.lam = np.zeros(len(self.cdofs))
         self.total_linear_its = 0
@@ -725,7 +747,8 @@ class SnesVI:
         self.xl, self.xu = xl, xu
         snes.setVariableBounds(xl, xu)
         # a piecewise-linear VI wants a full step (petsc4py 3.18 has no getLineSearch)
-        with _options(prefix, {"snes_linesearch_type": "basic", **(options or {})}):
+        defaults = {"snes_linesearch_type": "basic", **({"snes_monitor": ""} if monitor else {}), **(options or {})}
+        with _options(prefix, defaults):
             snes.setFromOptions()
         self.snes = snes
         self.work = K.createVecRight()

@@ -24,12 +24,13 @@ def variants():
 
 @pytest.mark.parametrize("pair,mass", variants())
 def test_energy_conserved_without_obstacle(pair, mass):
-    """Midpoint on the linear problem conserves J^h exactly; only the linear solver's
-    relative tolerance (1e-12) and round-off remain, so 1e-9 relative over 30 steps."""
+    """Midpoint on the linear problem conserves J^h exactly; each step is one solve with a
+    direct factorisation, so only round-off remains: 1e-12 relative over 30 steps
+    (~4500 eps; measured 1e-15..3e-14 for every pair and C)."""
     r = simulate(membrane.Problem(N=6, with_obstacle=False), pair=pair, mass=mass, dt=1e-2, T=0.3)
     E = r.timeseries["energy"]
     assert r.timeseries["kinetic"].max() > 1e-3 * abs(E[0])     # something moves
-    assert max_rel_dev(E) < 1e-9
+    assert max_rel_dev(E) < 1e-12
 
 
 @pytest.mark.parametrize("pair", ["P1+/P0", "P2/P1"])
@@ -52,7 +53,7 @@ def test_ill_posed_pairs_blow_up(pair):
     assert growth[1e-3] > growth[1e-2]
 
 
-@pytest.mark.parametrize("pair", ["P1+/P0", "P1/P0", "P2/P1"])
+@pytest.mark.parametrize("pair", list(PAIRS))
 def test_backward_euler_energy_never_increases(pair):
     """Backward Euler dissipates: J^h(n+1) <= J^h(n) up to round-off (1e-12 of J^h(0))."""
     E = simulate(membrane.Problem(N=10), pair=pair, scheme="backward-euler", dt=5e-3, T=0.8).timeseries["energy"]
@@ -60,19 +61,24 @@ def test_backward_euler_energy_never_increases(pair):
     assert E[-1] < E[0]                                  # and it does lose energy at impact
 
 
-def test_constraint_holds_on_the_constrained_iterate():
+@pytest.mark.parametrize("pair,mass", [("P1+/P0", None), ("P2/P1", "lumped"), ("P2/P1", "consistent"),
+                                       ("P1+/P1", "consistent")])
+def test_constraint_holds_on_the_constrained_iterate(pair, mass):
     """U^{n+1/2} (midpoint) and U^{n+1} (backward Euler) satisfy u >= 0 at every vertex at
     every step to round-off; the midpoint's U^{n+1} = 2 U^{n+1/2} - U^n may dip below by
-    O(dt): we record the dip and check it shrinks roughly in proportion to dt."""
+    O(dt): we record the dip and check it shrinks roughly in proportion to dt (measured
+    ratios 0.08-0.10 for a factor 10 in dt). P2/P1 and the consistent (U, V) block system
+    are included: there the vertex bounds sit among free edge and bubble dofs."""
     dips = {}
     for dt in (1e-2, 1e-3):
-        r = simulate(membrane.Problem(N=10), pair="P1+/P0", dt=dt, T=0.5)
+        r = simulate(membrane.Problem(N=10), pair=pair, mass=mass, dt=dt, T=0.5)
         assert r.gap_imposed.min() >= -1e-14
         assert r.info["constraint_imposed_on"] == "U^{n+1/2}"
         dips[dt] = -r.gap_end.min()
-    print(f"midpoint U^(n+1) dips below the obstacle by {dips[1e-2]:.3e} (dt 1e-2), {dips[1e-3]:.3e} (dt 1e-3)")
+    print(f"{pair}: midpoint U^(n+1) dips below the obstacle by {dips[1e-2]:.3e} (dt 1e-2), "
+          f"{dips[1e-3]:.3e} (dt 1e-3)")
     assert 0 < dips[1e-3] < 0.3 * dips[1e-2]            # O(dt): a factor 10 in dt gives ~10x
-    r = simulate(membrane.Problem(N=10), pair="P1+/P0", scheme="backward-euler", dt=1e-2, T=0.5)
+    r = simulate(membrane.Problem(N=10), pair=pair, mass=mass, scheme="backward-euler", dt=1e-2, T=0.5)
     assert r.gap_end.min() >= -1e-14 and r.gap_imposed.min() >= -1e-14
 
 
@@ -99,18 +105,26 @@ def test_free_fall_of_the_centre_matches_closed_form(pair):
     assert errs[2] < 0.01 * 0.02                          # 1 % of the initial height
 
 
-def test_lumped_and_consistent_C_converge_together():
+@pytest.mark.parametrize("pair,T,slope", [("P1+/P1", 0.45, 0.8), ("P2/P1", 0.3, 1.5)])
+def test_lumped_and_consistent_C_converge_together(pair, T, slope):
     """P1 velocity: lumped C and consistent C (the (U, V) block system) are two
     discretisations of the same problem; refining h and dt together (dt/h fixed), the
-    centre displacement curves up to the release of the first contact get closer."""
-    diffs = []
-    for N in (8, 16, 32):
+    largest difference of the centre displacement curves decreases at a fitted rate of at
+    least ``slope`` in h, and at every refinement. Measured: P1+/P1 up to T = 0.45 (through
+    the first contact and its release) 1.44e-2, 7.29e-3, 3.58e-3 (rate 1.0); P2/P1 up to
+    T = 0.3 (through the first impact) 2.10e-3, 3.44e-4, 8.4e-5 (rate 2.3). P2/P1 after the
+    release converges much more slowly (2.10e-3, 2.04e-3, 1.67e-3 to T = 0.45): there the
+    difference is a shift of the release time, which depends on a single vertex."""
+    Ns, diffs = (8, 16, 32), []
+    for N in Ns:
         dt = 0.125 / N
-        a = simulate(membrane.Problem(N=N), pair="P2/P1", dt=dt, T=0.45, mass="lumped").timeseries["u_probe"]
-        b = simulate(membrane.Problem(N=N), pair="P2/P1", dt=dt, T=0.45, mass="consistent").timeseries["u_probe"]
+        a = simulate(membrane.Problem(N=N), pair=pair, dt=dt, T=T, mass="lumped").timeseries["u_probe"]
+        b = simulate(membrane.Problem(N=N), pair=pair, dt=dt, T=T, mass="consistent").timeseries["u_probe"]
         diffs.append(np.max(np.abs(a - b)))
-    print("max |u_lumped - u_consistent| at the centre:", diffs)
-    assert diffs[2] < diffs[1] < diffs[0]
+    rate = np.polyfit(np.log(1.0 / np.array(Ns)), np.log(diffs), 1)[0]
+    print(f"{pair}: max |u_lumped - u_consistent| at the centre: {diffs}, fitted rate {rate:.2f}")
+    assert rate >= slope
+    assert diffs[2] < 0.8 * diffs[1] < 0.64 * diffs[0]
 
 
 def test_vi_solvers_agree():
@@ -124,9 +138,10 @@ def test_vi_solvers_agree():
 
 
 @pytest.mark.skipif(COMM.size == 1, reason="compares a 2-rank run with a serial one: needs mpirun -n 2")
-def test_one_and_two_ranks_agree():
+@pytest.mark.parametrize("pair,mass", [("P1+/P0", None), ("P2/P1", "lumped"), ("P2/P1", "consistent")])
+def test_one_and_two_ranks_agree(pair, mass):
     """The distributed run equals a serial run of the same problem to ~1e-10 relative."""
-    kw = dict(pair="P2/P1", dt=2e-3, T=0.6)
+    kw = dict(pair=pair, mass=mass, dt=2e-3, T=0.6)
     par = simulate(membrane.Problem(N=10, comm=COMM), **kw).timeseries
     ser = simulate(membrane.Problem(N=10, comm=MPI.COMM_SELF), **kw).timeseries if COMM.rank == 0 else None
     ser = COMM.bcast(ser, root=0)
@@ -136,21 +151,38 @@ def test_one_and_two_ranks_agree():
 
 
 def test_solver_failure_names_step_and_time(mpi_tmp_path):
-    """An injected failure (one Newton iteration allowed) raises with step and time, and
-    the outputs up to the last good step stay readable."""
+    """An injected failure (one Newton iteration allowed: -sdm_vi_max_it 1) raises with step,
+    time and reason, and the outputs up to the last good step stay readable."""
     import json
-    from sdm_dolfinx import vi
-    old = vi.SemismoothNewton.__init__.__defaults__
-    try:
-        d = list(old)
-        d[-1] = 1                                          # max_it = 1
-        vi.SemismoothNewton.__init__.__defaults__ = tuple(d)
-        with pytest.raises(StepError, match=r"step \d+ \(t = [0-9.e-]+\)"):
-            simulate(membrane.Problem(N=8), pair="P1+/P0", dt=1e-2, T=0.5, out=mpi_tmp_path)
-    finally:
-        vi.SemismoothNewton.__init__.__defaults__ = old
+    with pytest.raises(StepError, match=r"step \d+ \(t = [0-9.e-]+\): semi-smooth Newton did not converge "
+                                        r"in 1 iterations \(\d+ constraints still infeasible\)"):
+        simulate(membrane.Problem(N=8), pair="P1+/P0", dt=1e-2, T=0.5, out=mpi_tmp_path,
+                 petsc_options={"vi_max_it": "1"})
     if COMM.rank == 0:
         info = json.loads((mpi_tmp_path / "run.json").read_text())
         assert info["status"] == "failed" and "step" in info["error"]
         rows = (mpi_tmp_path / "timeseries.csv").read_text().splitlines()
         assert len(rows) >= 2 and all(len(r.split(",")) == 9 for r in rows)
+
+
+def test_vinewtonrsls_cycles_on_p2p1_where_the_semismooth_newton_converges():
+    """The case that motivated the default solver (issue 2, STYLE.md): P2/P1, N = 10,
+    dt = 1e-3, at the first impact (t ~ 0.25, a whole square of vertices touches at once)
+    SNES vinewtonrsls cycles between two active sets until its iteration limit; the
+    semi-smooth Newton solves every step of the same run in at most 3 iterations."""
+    kw = dict(pair="P2/P1", mass="lumped", dt=1e-3, T=0.3)
+    with pytest.raises(StepError, match=r"step 2[0-9]{2} \(t = 0\.2[0-9]*\): SNES vinewtonrsls diverged"):
+        simulate(membrane.Problem(N=10), vi_solver="vinewtonrsls", **kw)
+    ts = simulate(membrane.Problem(N=10), **kw).timeseries
+    assert ts["n_active"].max() > 0 and ts["newton_its"].max() <= 3
+
+
+def test_solver_monitor_prints_each_iteration(capfd):
+    """-sdm_vi_monitor prints one line per semi-smooth Newton iteration (on rank 0)."""
+    ts = simulate(membrane.Problem(N=6), pair="P1+/P0", dt=1e-2, T=0.3,
+                  petsc_options={"vi_monitor": "1"}).timeseries
+    lines = [ln for ln in capfd.readouterr().out.splitlines() if "semi-smooth Newton:" in ln]
+    if COMM.rank == 0:
+        assert len(lines) == int(ts["newton_its"][1:].sum())
+    else:
+        assert lines == []
