@@ -89,8 +89,12 @@ def add_run_arguments(p, defaults):
                         "(U, V) block system), standard (H = W); default: diagonal for P0, lumped for P1")
     g.add_argument("--scheme", default=defaults["scheme"], choices=list(SCHEMES),
                    help=f"time scheme (default {defaults['scheme']})")
-    g.add_argument("--dt", type=_positive_float, default=defaults["dt"], help=f"time step (default {defaults['dt']})")
-    g.add_argument("--T", type=_positive_float, default=defaults["T"], help=f"final time (default {defaults['T']})")
+    unit = defaults.get("time_unit", "")
+    unit = f", {unit}" if unit else ""
+    g.add_argument("--dt", type=_positive_float, default=defaults["dt"],
+                   help=f"time step (default {defaults['dt']}{unit})")
+    g.add_argument("--T", type=_positive_float, default=defaults["T"],
+                   help=f"final time (default {defaults['T']}{unit})")
     g.add_argument("--vi-solver", choices=VI_SOLVERS, default="ssn",
                    help="step solver: ssn = semi-smooth Newton / primal-dual active set (default), or PETSc SNES "
                         "vinewtonrsls / vinewtonssls")
@@ -320,7 +324,10 @@ def main(argv=None):
     argv = sys.argv[1:] if argv is None else list(argv)
     if argv and argv[0] in SUBCOMMANDS:
         import importlib
-        return importlib.import_module(SUBCOMMANDS[argv[0]], __package__).main(argv[1:])
+        try:
+            return importlib.import_module(SUBCOMMANDS[argv[0]], __package__).main(argv[1:])
+        except Exception as e:
+            return internal_error(f"python -m sdm_dolfinx {argv[0]}", e, comm)
     parser, subparsers = build_parser()
     try:
         if not argv or argv[0] in ("-h", "--help"):
@@ -343,14 +350,19 @@ def main(argv=None):
         return 2
     try:
         return _run(args, argv, mod, parser, comm)
-    except Exception as e:          # an internal error: say it in one line, take every rank down
-        print(f"{parser.prog} {args.command}: internal error on rank {comm.rank}: {type(e).__name__}: {e}",
-              file=sys.stderr, flush=True)
-        if os.environ.get("SDM_DEBUG"):
-            raise
-        if comm.size > 1:
-            comm.Abort(1)
-        return 1
+    except Exception as e:
+        return internal_error(f"{parser.prog} {args.command}", e, comm)
+
+
+def internal_error(prog, e, comm):
+    """An unexpected exception: say it in one line (SDM_DEBUG=1 shows the traceback) and take
+    every rank down (no deadlock when one rank fails alone); returns exit status 1."""
+    print(f"{prog}: internal error on rank {comm.rank}: {type(e).__name__}: {e}", file=sys.stderr, flush=True)
+    if os.environ.get("SDM_DEBUG"):
+        raise e
+    if comm.size > 1:
+        comm.Abort(1)
+    return 1
 
 
 def _run(args, argv, mod, parser, comm):

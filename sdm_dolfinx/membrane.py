@@ -75,7 +75,7 @@ def Problem(N=10, f=-0.6, u0=0.02, g=0.02, obstacle=0.0, diagonal="right", probe
 
 
 #: defaults of the command line (paper section 4)
-DEFAULTS = {"pair": "P1+/P0", "scheme": "midpoint", "dt": 1e-3, "T": 0.8}
+DEFAULTS = {"pair": "P1+/P0", "scheme": "midpoint", "dt": 1e-3, "T": 0.8, "time_unit": "dimensionless"}
 
 
 def add_arguments(parser):

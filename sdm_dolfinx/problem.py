@@ -35,7 +35,7 @@ class Problem:
         probe: the point (x, y) where the displacement (and, at the nearest constrained
             vertex, the contact stress) is recorded.
         extra_columns: additional time-series columns among ``contact_force``,
-            ``momentum_y``.
+            ``momentum_y``, ``elastic`` (1/2 U^T A U).
         parameters: physical parameters for ``run.json``; ``units`` their units.
         gravity_direction: for ``momentum_y``: the component index used.
     """

@@ -200,6 +200,8 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
             row["contact_force"] = comm.allreduce(float(np.sum(lam)), op=MPI.SUM)
         if "momentum_y" in columns:
             row["momentum_y"] = integ.momentum(V, problem.momentum_component)
+        if "elastic" in columns:            # 1/2 U^T A U = potential + U^T L
+            row["elastic"] = pot + U.dot(disc.L)
         row["linear_its_total"] = integ.solver.total_linear_its     # for on_step observers (not in the CSV)
         if not np.isfinite(row["energy"]):
             raise StepError(f"step {n} (t = {t:.6g}): the energy is not finite ({row['energy']})")

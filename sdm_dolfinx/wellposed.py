@@ -327,9 +327,10 @@ def _fmt_beta(b):
 
 def report(r):
     """A human-readable block for one result."""
-    par = ", ".join(f"{k} = {v}" for k, v in r["parameters"].items() if k in ("N", "level", "h", "diagonal"))
+    names = {"N": "N", "level": "level", "h": "mesh size parameter", "diagonal": "diagonal"}
+    par = ", ".join(f"{names[k]} = {v}" for k, v in r["parameters"].items() if k in names and v is not None)
     lines = [
-        f"{r['problem']} ({par}; largest cell diameter h = {r['h']:.4g}), pair {r['pair']}, {r['ranks']} rank(s)",
+        f"{r['problem']} ({par}; largest cell diameter {r['h']:.4g}), pair {r['pair']}, {r['ranks']} rank(s)",
         f"  dim W^h = {r['dim_W']} (Dirichlet dofs removed: {r['n_dirichlet']}), dim H^h = {r['dim_H']}, "
         f"N_g = {r['N_g']}, dim Ker(B) = {r['dim_ker_B']}",
         f"  count condition dim H^h <= dim W^h - N_g: {r['dim_H']} <= {r['dim_W'] - r['N_g']}: "
@@ -438,8 +439,10 @@ def build_parser(problem, problems):
                        "--diagonal, --no-obstacle; the disc's --level, --h, --radius, --contact-zone, --no-contact) "
                        "change the result; the others are accepted for symmetry with the run commands.")
     p.add_argument("--problem", choices=sorted(problems), default="membrane", help="the problem (default membrane)")
-    p.add_argument("--pair", nargs="+", default=["P1+/P0"], metavar="PAIR",
-                   help=f"one or more pairs, or 'all': {', '.join(PAIRS)} (default P1+/P0)")
+    default_pair = getattr(problems.get(problem), "DEFAULTS", {}).get("pair", "P1+/P0")
+    p.add_argument("--pair", nargs="+", default=[default_pair], metavar="PAIR",
+                   help=f"one or more pairs, or 'all': {', '.join(PAIRS)} (default: the problem's, "
+                        f"{default_pair} for {problem})")
     param, default_values = SWEEPS.get(problem, ("?", ()))
     p.add_argument("--sweep", nargs="*", type=_int_list, default=None, metavar="V",
                    help=f"run a sequence of meshes: values of --{param} (default {' '.join(map(str, default_values))})"
@@ -490,6 +493,8 @@ def _parse(argv, problems):
             errors.append(f"--sweep is not available for problem {args.problem}")
         elif not args.sweep:
             args.sweep = list(SWEEPS[args.problem][1])
+        if args.problem == "disc" and getattr(args, "h", None) is not None:
+            errors.append("--sweep runs the named --level meshes: drop --h (or inspect one --h at a time)")
     elif args.png is not None:
         errors.append("--png needs --sweep")
     if errors:

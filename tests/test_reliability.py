@@ -233,7 +233,7 @@ def test_paper_configurations_are_current():
 def test_restart_continues_the_disc_exactly(mpi_tmp_path):
     """The disc, stopped during contact (step 105 of dt = 1e-4 s; contact starts near 9.6
     ms) and restarted, reproduces the uninterrupted time series (contact force and
-    momentum included)."""
+    momentum and elastic energy included)."""
     from sdm_dolfinx import disc
     kw = dict(pair="P2/P1", dt=1e-4, T=0.012, write_every=20)
     make = lambda: disc.Problem(level=1)                                  # noqa: E731
@@ -241,6 +241,6 @@ def test_restart_continues_the_disc_exactly(mpi_tmp_path):
     _interrupted_then_restarted(make, mpi_tmp_path / "cut", 105, **kw)
     if COMM.rank == 0:
         a, b = read_csv(mpi_tmp_path / "ref" / "timeseries.csv"), read_csv(mpi_tmp_path / "cut" / "timeseries.csv")
-        assert a.shape == b.shape == (121, 11)
+        assert a.shape == b.shape == (121, 12)
         assert a[:, 7].max() > 0                                           # it is in contact
         assert np.allclose(a, b, rtol=RTOL, atol=RTOL * np.abs(a).max(axis=0))
