@@ -11,7 +11,11 @@ import json
 import math
 import os
 import sys
-import tomllib
+import tempfile
+try:
+    import tomllib                  # Python >= 3.11
+except ModuleNotFoundError:        # pragma: no cover
+    import tomli as tomllib
 from pathlib import Path
 
 from mpi4py import MPI
@@ -185,6 +189,19 @@ def _check_out(out, overwrite):
         probe_dir = probe_dir.parent
     if not probe_dir.is_dir() or not os.access(probe_dir, os.W_OK | os.X_OK):
         raise UsageError(f"cannot write to {out} ({probe_dir} is not a writable folder)")
+    # os.access says yes to root on a read-only file system (/proc, a read-only mount): try
+    # a temporary file in the folder that exists (removed at once: nothing is left behind)
+    comm = MPI.COMM_WORLD
+    problem = None
+    if comm.rank == 0:
+        try:
+            with tempfile.TemporaryFile(dir=probe_dir):
+                pass
+        except OSError as e:
+            problem = f"cannot write to {out} (creating a file in {probe_dir} failed: {e.strerror or e})"
+    problem = comm.bcast(problem, root=0)
+    if problem:
+        raise UsageError(problem)
 
 
 def _petsc_overrides(extra):
@@ -202,6 +219,10 @@ def _petsc_overrides(extra):
         _check_vi_option(key, value)
         opts.setValue(key[1:], value if value is not None else "")
         i += 1
+    if extra and not opts.hasName("options_left"):
+        # PETSc lists the options nobody read when it finalises (a misspelt -sdm_ option
+        # would otherwise be ignored in silence)
+        opts.setValue("options_left", "")
 
 
 #: the step solver's own options (see vi._vi_tolerances): name -> (type, test, allowed values)

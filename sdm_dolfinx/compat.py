@@ -157,6 +157,17 @@ def dofmap_list(V):
     return V.dofmap.list.array.reshape(-1, V.dofmap.dof_layout.num_dofs)   # also with 0 local cells
 
 
+def trapezoid(y, x):
+    """The trapezoidal rule: ``numpy.trapezoid`` (numpy >= 2; Debian 13) or ``numpy.trapz``."""
+    return (np.trapezoid if hasattr(np, "trapezoid") else np.trapz)(y, x)
+
+
+def pc_failed_reason(pc):
+    """``PC.getFailedReason()`` (petsc4py >= 3.20), or 0 on older petsc4py: MUMPS reports
+    its failures through INFOG(1) on every version."""
+    return int(pc.getFailedReason()) if hasattr(pc, "getFailedReason") else 0
+
+
 def interpolation_points(V):
     """Reference interpolation points of V's element (for ``fem.Expression``): a method in
     0.5, a property on newer versions."""
@@ -233,7 +244,7 @@ def versions():
     return {"dolfinx": dolfinx.__version__, "basix": basix.__version__, "ufl": ufl.__version__,
             "petsc4py": petsc4py.__version__, "petsc": ".".join(map(str, PETSc.Sys.getVersion())),
             "mpi4py": __import__("mpi4py").__version__, "numpy": np.__version__,
-            "mpi": MPI.Get_library_version().splitlines()[0]}
+            "mpi": MPI.Get_library_version().splitlines()[0].rstrip("\x00").strip()}
 
 
 def cell_tree(msh, cells, padding=0.0):

@@ -33,7 +33,7 @@ from mpi4py import MPI
 
 import numpy as np
 
-from . import postprocess
+from . import compat, postprocess
 from .disc_mesh import LEVEL_DOFS, LEVELS, PAPER_DOFS
 from .simulate import num_steps
 
@@ -503,23 +503,22 @@ def curve_diff(a, b, col, scale):
     return float(np.max(np.abs(a[col][:len(t)] - np.interp(t, b.t, b[col]))) / scale)
 
 
-_trapezoid = getattr(np, "trapezoid", None) or np.trapz     # numpy 2 renamed it
 
 
 def l2_diff(a, b, col):
     """(∫|a − b|² dt / ∫|b|² dt)^½ on a's time grid (b interpolated)."""
     t = a.t[a.t <= b.t[-1] + 1e-12]
     bb = np.interp(t, b.t, b[col])
-    den = _trapezoid(bb ** 2, t)
-    return float(np.sqrt(_trapezoid((a[col][:len(t)] - bb) ** 2, t) / den)) if den > 0 else math.nan
+    den = compat.trapezoid(bb ** 2, t)
+    return float(np.sqrt(compat.trapezoid((a[col][:len(t)] - bb) ** 2, t) / den)) if den > 0 else math.nan
 
 
 def l1_diff(a, b, col):
     """∫|a − b| dt / ∫|b| dt on a's time grid."""
     t = a.t[a.t <= b.t[-1] + 1e-12]
     bb = np.interp(t, b.t, b[col])
-    den = _trapezoid(np.abs(bb), t)
-    return float(_trapezoid(np.abs(a[col][:len(t)] - bb), t) / den) if den > 0 else math.nan
+    den = compat.trapezoid(np.abs(bb), t)
+    return float(compat.trapezoid(np.abs(a[col][:len(t)] - bb), t) / den) if den > 0 else math.nan
 
 
 def _pct(x, digits=2):
@@ -853,8 +852,7 @@ def _cells_p2(V):
     """Per owned cell, the dof (block) indices of the P2 space V (6 per triangle)."""
     msh = V.mesh
     n = msh.topology.index_map(msh.topology.dim).size_local
-    dofs = V.dofmap.list
-    return np.asarray(getattr(dofs, "array", dofs)).reshape(-1, V.dofmap.dof_layout.num_dofs)[:n]
+    return compat.dofmap_list(V)[:n]
 
 
 def fig13(study, runs_dir, out):

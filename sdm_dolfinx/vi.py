@@ -22,6 +22,8 @@ from petsc4py import PETSc
 
 import numpy as np
 
+from . import compat
+
 #: linear strategies of the semi-smooth Newton (see :class:`SemismoothNewton`)
 LINEAR_STRATEGIES = ("auto", "schur", "cg-factor", "lu", "amg", "cg-amg")
 
@@ -133,8 +135,7 @@ def factorise(M, comm, prefix, kind="cholesky", package="mumps", agree=None, ret
         with margin:
             ksp.setFromOptions()
             ksp.setUp()
-        # PC.getFailedReason is petsc4py >= 3.20; MUMPS reports through INFOG(1) on every version
-        reason = int(pc.getFailedReason()) if hasattr(pc, "getFailedReason") else 0
+        reason = compat.pc_failed_reason(pc)
         infog = pc.getFactorMatrix().getMumpsInfog(1) if pc.getFactorSolverType() == "mumps" else 0
         worst = agree.allreduce(min(infog, 0), op=MPI.MIN)
         failed = agree.allreduce(reason != 0 or infog < 0, op=MPI.LOR)

@@ -42,6 +42,12 @@ def test_unwritable_output_folder(mpi_tmp_path, capsys):
     assert cli.main(["membrane", "--out", str(blocker / "sub"), "--quiet"]) == 2
     if COMM.rank == 0:
         assert "cannot write" in capsys.readouterr().err
+    # a file system that refuses files even to root (os.access says yes there)
+    for path in ("/proc/sdm_out", "/sys/sdm_out"):
+        assert cli.main(["membrane", "--out", path, "--quiet"]) == 2
+        if COMM.rank == 0:
+            err = capsys.readouterr().err
+            assert "cannot write" in err and len(err.strip().splitlines()) == 1
 
 
 @pytest.mark.skipif(COMM.size > 1, reason="starts its own python process: serial only")

@@ -160,6 +160,17 @@ BAD = [
     (["membrane"], 'problem = "disc"\n', "key 'problem'"),
     (["membrane"], "N = 0\n", "--N"),
     (["membrane", "--restart", "/nonexistent/run"], None, "no run.json"),
+    (["membrane", "-sdm_vi_rtol", "-1"], None, "-sdm_vi_rtol"),
+    (["membrane", "-sdm_vi_max_it", "0"], None, "-sdm_vi_max_it"),
+    (["membrane", "-sdm_vi_max_it", "many"], None, "-sdm_vi_max_it"),
+    (["disc", "--radius", "0"], None, "--radius"),
+    (["disc", "--rho", "nan"], None, "--rho"),
+    (["disc", "--level", "7"], None, "invalid choice"),
+    (["disc", "--h", "-1"], None, "--h"),
+    (["disc", "--lame-mu", "-150"], None, "--lame-mu"),
+    (["disc", "--gravity", "inf"], None, "--gravity"),
+    (["disc"], 'problem = "membrane"\n', "key 'problem'"),
+    (["disc"], "level = 2.5\n", "key 'level'"),
 ]
 
 
@@ -170,7 +181,7 @@ def test_bad_input_is_refused(argv, toml, message, mpi_tmp_path, capsys):
     argv = list(argv)
     if toml is not None:
         argv += ["--config", _write(mpi_tmp_path / "bad.toml", toml)]
-    if argv[0] == "membrane":
+    if argv[0] in ("membrane", "disc"):
         argv += ["--out", str(out)]
     assert cli.main(argv) == 2
     err = capsys.readouterr().err

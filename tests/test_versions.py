@@ -47,6 +47,7 @@ def _pairs():
 @pytest.mark.parametrize("ranks", _pairs() if RUNS else ["np1"])
 def test_membrane_series_agree_between_versions(ranks):
     root = Path(RUNS)
+    assert _pairs(), f"no host-np* runs in {root}"
     host, other = root / f"host-{ranks}", root / f"other-{ranks}"
     assert other.is_dir(), f"{other} is missing: the chroot run did not happen"
     hi, hs = _load(host)
