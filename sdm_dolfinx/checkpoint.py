@@ -135,6 +135,68 @@ def load(folder, comm):
     return comm.bcast(data, root=0)
 
 
+def previous_run_id(folder, comm):
+    """The ``run_id`` of ``folder/run.json`` (None without one), on every rank."""
+    rid = None
+    if comm.rank == 0:
+        try:
+            rid = json.loads((Path(folder) / "run.json").read_text()).get("run_id")
+        except (OSError, ValueError, AttributeError):
+            rid = None
+    return comm.bcast(rid, root=0)
+
+
+def _readable_h5(path):
+    import h5py
+    try:
+        with h5py.File(path, "r") as h5:
+            h5.visit(lambda name: None)         # walks every object: a damaged header raises
+        return True
+    except (OSError, RuntimeError, KeyError, ValueError):
+        return False
+
+
+def check_outputs(folder, step, comm):
+    """Before a restart touches anything: the time series must reach the checkpoint's step
+    (else the checkpoint is not this folder's run), and HDF5 files that a kill during a
+    write left unreadable are moved aside (``solution.damaged.h5`` ...) so that the run
+    continues them in new files. Returns ``{"solution": ok, "state": ok, "moved": [names]}``
+    on every rank; raises CheckpointError (nothing changed) when the series is too short."""
+    res, err = None, None
+    if comm.rank == 0:
+        folder = Path(folder)
+        csv = folder / "timeseries.csv"
+        last = -1
+        if csv.exists():
+            lines = csv.read_text().splitlines()
+            width = len(lines[0].split(",")) if lines else 0
+            steps = [int(ln.split(",", 1)[0]) for ln in lines[1:] if ln and len(ln.split(",")) == width]
+            last = max(steps, default=-1)
+        if last < step:
+            err = (f"{csv} ends at step {last}, before the checkpoint's step {step}: the checkpoint is "
+                   f"not from the run in {folder}")
+        else:
+            res = {"moved": []}
+            for key, stem in (("solution", "solution"), ("state", "state")):
+                h5 = folder / f"{stem}.h5"
+                ok = h5.exists() and _readable_h5(h5)
+                if h5.exists() and not ok:
+                    for suffix in (".h5", ".xdmf"):
+                        src = folder / f"{stem}{suffix}"
+                        if src.exists():
+                            dst = folder / f"{stem}.damaged{suffix}"
+                            os.replace(src, dst)
+                            res["moved"].append(dst.name)
+                elif not ok and key == "solution" and (folder / "solution.xdmf").exists():
+                    os.replace(folder / "solution.xdmf", folder / "solution.damaged.xdmf")
+                    res["moved"].append("solution.damaged.xdmf")
+                res[key] = ok
+    err = comm.bcast(err, root=0)
+    if err:
+        raise CheckpointError(err)
+    return comm.bcast(res, root=0)
+
+
 def truncate_csv(path, last_step, comm):
     """Keep the header and the rows of steps <= last_step (rank 0); returns those rows."""
     rows = None

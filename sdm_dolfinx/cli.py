@@ -154,10 +154,17 @@ def build_parser():
     return parser, subparsers
 
 
+#: the longest run accepted (--T / --dt): ~100 bytes of time series per step in memory
+MAX_STEPS = 1e7
+
+
 def _check_run(args, mod):
     errors = list(mod.check_arguments(args))
     if args.T < args.dt:
         errors.append(f"--T ({args.T}) must be >= --dt ({args.dt})")
+    elif args.T / args.dt > MAX_STEPS:
+        errors.append(f"--T / --dt = {args.T / args.dt:.3g} steps: at most {MAX_STEPS:.0e} (the time series "
+                      f"alone would take {args.T / args.dt * 100 / 1e9:.3g} GB)")
     if args.write_every < 1:
         errors.append(f"--write-every must be >= 1 (got {args.write_every})")
     if args.checkpoint_every is not None and args.checkpoint_every < 1:
@@ -179,6 +186,13 @@ def _check_out(out, overwrite):
             status = "unreadable"
         if status == "finished":
             raise UsageError(f"{out} already holds a finished run; use --overwrite or another --out")
+        if status == "failed":
+            raise UsageError(f"{out} holds a failed run (see its run.json); use --overwrite or another --out")
+        if status == "running":
+            has = (out / "checkpoint.npz").exists()
+            raise UsageError(f"{out} holds a run that is still going or was killed"
+                             + (f"; continue it with --restart {out}" if has else "")
+                             + ", or use --overwrite")
         if status == "interrupted":
             raise UsageError(f"{out} holds an interrupted run; continue it with --restart {out}, "
                              f"or use --overwrite")
@@ -290,13 +304,18 @@ def load_config(path, subparser, command):
         raise UsageError(f"cannot read config file {path}: {e.strerror}") from None
     except tomllib.TOMLDecodeError as e:
         raise UsageError(f"{path}: invalid TOML: {e}") from None
+    except UnicodeDecodeError:
+        raise UsageError(f"{path}: not a TOML file (TOML is UTF-8 text)") from None
     problem = data.pop("problem", command)
     if problem != command:
         raise UsageError(f"{path}: key 'problem' is {problem!r} but the command is {command!r}")
     actions = {a.dest: a for a in subparser._actions if a.dest not in ("help", "config", "restart")}
-    defaults = {}
+    defaults, seen = {}, {}
     for key, value in data.items():
         dest = key.replace("-", "_")
+        if dest in seen:
+            raise UsageError(f"{path}: keys '{seen[dest]}' and '{key}' are the same option")
+        seen[dest] = key
         if dest not in actions:
             raise UsageError(f"{path}: unknown key '{key}'; allowed keys: problem, "
                              f"{', '.join(sorted(a.replace('_', '-') for a in actions))}")

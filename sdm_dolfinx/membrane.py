@@ -5,6 +5,8 @@ boundary, u(0) = 0.02, u'(0) = 0, f = -0.6; structured N x N mesh (h = 1/N).
 """
 from mpi4py import MPI
 
+import math
+
 import numpy as np
 import ufl
 from dolfinx import mesh as dmesh
@@ -100,6 +102,10 @@ def check_arguments(args):
         errors.append(f"--N must be >= 1 (got {args.N})")
     if not all(0.0 <= c <= 1.0 for c in args.probe):
         errors.append(f"--probe must lie in the unit square (got {tuple(args.probe)})")
+    for name in ("f", "u0", "g", "obstacle"):
+        v = getattr(args, name)
+        if not math.isfinite(v) or abs(v) > 1e150:    # squared in the energy: keep it finite
+            errors.append(f"--{name} must be a finite number of magnitude <= 1e150 (got {v})")
     return errors
 
 

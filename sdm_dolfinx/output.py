@@ -197,9 +197,10 @@ class XDMFWriter:
     def __init__(self, path, disc, integrator, append=False):
         self.disc, self.integ = disc, integrator
         msh = disc.problem.mesh
-        self.file = compat.xdmf_file(msh.comm, path, "a" if append else "w")
+        self.path, self.comm = path, msh.comm
         if not append:
-            self.file.write_mesh(msh)
+            with compat.xdmf_file(msh.comm, path, "w") as f:
+                f.write_mesh(msh)
         self.uW = fem.Function(disc.W)
         self.vsrc = fem.Function(disc.H if integrator.block else disc.W)
         self.u1 = fem.Function(disc.P1, name="displacement")
@@ -227,9 +228,12 @@ class XDMFWriter:
             vec = compat.petsc_vec(f)
             vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
             vec.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
-        for f in (self.u1, self.v1, self.s1, self.a1):
-            self.file.write_function(f, float(t))
+        # opened and closed at every write: HDF5 keeps an open file's metadata in memory, so a
+        # run killed with SIGKILL would otherwise leave solution.h5 unreadable (and with it
+        # every earlier step); closed, only a kill during this write can damage it
+        with compat.xdmf_file(self.comm, self.path, "a") as file:
+            for f in (self.u1, self.v1, self.s1, self.a1):
+                file.write_function(f, float(t))
 
     def close(self):
-        """Close the XDMF file (collective)."""
-        self.file.close()
+        """Nothing stays open between writes (kept for the writers' common interface)."""

@@ -1,6 +1,8 @@
 """The time loop: Problem + Pair + scheme -> time series (and files, if asked)."""
 import signal
+import sys
 import time
+import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -163,15 +165,32 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
         _check_identity(meta["identity"], identity)
         if meta["step"] > nsteps:
             raise checkpoint.CheckpointError(f"the checkpoint is at step {meta['step']}, past T = {nsteps * dt}")
+        previous = checkpoint.previous_run_id(out, comm)
+        if meta.get("run_id") != previous:
+            raise checkpoint.CheckpointError(
+                f"{Path(out) / checkpoint.CHECKPOINT} was written by another run than the one in "
+                f"{Path(out) / 'run.json'} (run_id {meta.get('run_id')} vs {previous})")
+        outputs = checkpoint.check_outputs(out, meta["step"], comm)     # may move damaged files aside
         checkpoint.restore(data, fields, comm)
         integ.solver.active = checkpoint.active_mask(data, disc.cx)
         first = meta["step"]
         info["restarted_from_step"] = first
+        run_id = previous
+        if outputs["moved"] and comm.rank == 0:
+            print(f"warning: {', '.join(n.replace('.damaged', '') for n in outputs['moved'] if n.endswith('.h5'))} "
+                  f"could not be read (the run was killed while writing it): moved to "
+                  f"{', '.join(outputs['moved'])}; the fields continue from step {first} in new files",
+                  file=sys.stderr, flush=True)
+    else:
+        run_id = comm.bcast(uuid.uuid4().hex if comm.rank == 0 else None, root=0)
+    info["run_id"] = run_id
     writer = xdmf = state = None
     if out is not None:
         out = Path(out)
         if comm.rank == 0:
             out.mkdir(parents=True, exist_ok=True)
+            if not restart:         # a checkpoint of the run this one replaces must not be resumed
+                (out / checkpoint.CHECKPOINT).unlink(missing_ok=True)
         comm.Barrier()
         write_json(out / "run.json", info, comm)
         if restart:
@@ -180,15 +199,20 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
                 vals = line.split(",")
                 for c, v in zip(columns, vals):
                     series[c][int(vals[0])] = float(v)
-            checkpoint.truncate_xdmf(out / "solution.xdmf", first * dt, comm)
+            if outputs["solution"]:
+                checkpoint.truncate_xdmf(out / "solution.xdmf", first * dt, comm)
         writer = CSVWriter(out / "timeseries.csv", columns, comm, append=restart)
-        xdmf = XDMFWriter(out / "solution.xdmf", disc, integ, append=restart)
-        state = StateWriter(out / "state.h5", disc, integ, fingerprint, append=restart, last_step=first)
+        xdmf = XDMFWriter(out / "solution.xdmf", disc, integ, append=restart and outputs["solution"])
+        state = StateWriter(out / "state.h5", disc, integ, fingerprint, append=restart and outputs["state"],
+                            last_step=first)
         write_every = write_every or 10
+
+    written = [first]                   # the last step whose fields are in the files
 
     def write_fields(n):
         xdmf.write(U, V, lam, lam > 0, n * dt)
         state.write(U, V, n, n * dt)
+        written[0] = n
     scale = max(comm.allreduce(float(np.max(np.abs(disc.lb), initial=0.0)), op=MPI.MAX), 1.0)
     stop = _StopFlag(handle_signals)
 
@@ -212,17 +236,25 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
         return row
 
     def save_checkpoint(n):
-        meta = {"identity": identity, "step": n, "t": n * dt}
+        meta = {"identity": identity, "step": n, "t": n * dt, "run_id": run_id}
         checkpoint.save(out, comm, fields, disc.cx[:, integ.solver.active].T, meta)
 
+    good, n = None, first
     try:
         if not restart:
             record(0, 0.0, 0, 0)
             if xdmf is not None:
                 write_fields(0)
+        elif state is not None and not outputs["state"]:
+            state.write(U, V, first, first * dt)     # a new state.h5 starts at the checkpoint
         last_print = time.perf_counter()
+        # the state before each step, so that a failed run's files end with its last good step
+        good = (U.array.copy(), V.array.copy(), lam) if xdmf is not None else None
         for n in range(first, nsteps):
             t = n * dt
+            if good is not None:
+                good[0][:], good[1][:] = U.array, V.array
+                good = (good[0], good[1], lam)
             info_step = integ.step(U, V, n, t)
             lam = integ.lam.copy()
             gap_imposed[n], gap_end[n] = info_step["gap_imposed"], info_step["gap_end"]
@@ -255,6 +287,10 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
     except StepError as e:
         info.update(status="failed", error=str(e), wall_time=time.perf_counter() - wall0)
         if out is not None:
+            if good is not None and n > written[0]:       # step n was the last good one
+                U.array[:], V.array[:], lam = good
+                write_fields(n)
+            info["last_good_step"] = n
             write_json(out / "run.json", info, comm)
         raise
     finally:

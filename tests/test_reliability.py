@@ -119,9 +119,135 @@ def test_killed_run_keeps_whole_rows_and_restarts(mpi_tmp_path):
             assert np.allclose(h5["V"][:], h5r["V"][:], rtol=0, atol=v_tol)
 
 
+def _h5_fields(folder):
+    """{(field, time): values} of a solution.xdmf/.h5 pair (through the XDMF's references)."""
+    import re
+    import h5py
+    text = (folder / "solution.xdmf").read_text()
+    out = {}
+    with h5py.File(folder / "solution.h5", "r") as h5:
+        for t, body in re.findall(r'<Time Value="([^"]+)" />(.*?)</Grid>', text, re.S):
+            for name, ref in re.findall(r'<Attribute Name="([^"]+)".*?solution\.h5:([^<]+)</DataItem>', body, re.S):
+                out[(name, float(t))] = h5[ref][...]
+    return out
+
+
+def _run_until_killed(cmd, out, min_step):
+    """Start a run, SIGKILL it once it has a checkpoint and min_step rows; returns the
+    checkpoint's step."""
+    p = subprocess.Popen(cmd + ["--out", str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 300
+    while time.time() < deadline and p.poll() is None:
+        csv = out / "timeseries.csv"
+        if (out / "checkpoint.npz").exists() and csv.exists() and len(csv.read_text().splitlines()) > min_step + 1:
+            break
+        time.sleep(0.05)
+    assert p.poll() is None, "the run ended before it could be killed: " + p.stderr.read()
+    p.send_signal(signal.SIGKILL)
+    p.wait(timeout=60)
+    assert p.returncode == -signal.SIGKILL
+    info = json.loads((out / "run.json").read_text())
+    assert info["status"] == "running"                  # nothing had a chance to say otherwise
+    with np.load(out / "checkpoint.npz") as f:
+        return json.loads(str(f["meta"]))["step"]
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="kills a separate serial process")
+def test_sigkill_then_restart_reproduces_the_run(tmp_path):
+    """A real SIGKILL (no handler, no clean-up) after the first checkpoint: the CSV holds
+    whole rows, solution.h5 is readable (it is closed between writes), and --restart
+    finishes the run with the same CSV (bit for bit serially) and the same XDMF fields at
+    the same times as an uninterrupted run."""
+    args = ["membrane", "--N", "24", "--pair", "P2/P1", "--dt", "1e-3", "--T", "0.6", "--write-every", "20",
+            "--checkpoint-every", "50", "--quiet"]
+    cmd = [sys.executable, "-m", "sdm_dolfinx"] + args
+    cut = tmp_path / "cut"
+    step = _run_until_killed(cmd, cut, 120)
+    rows = (cut / "timeseries.csv").read_text().splitlines()
+    assert all(len(r.split(",")) == 9 for r in rows) and int(rows[-1].split(",")[0]) > step >= 50
+    import h5py
+    with h5py.File(cut / "solution.h5", "r") as h5:
+        assert len(h5["Function/displacement"]) >= step // 20
+    r = subprocess.run([sys.executable, "-m", "sdm_dolfinx", "membrane", "--restart", str(cut), "--quiet"],
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    assert cli.main(args + ["--out", str(tmp_path / "ref")]) == 0
+    a, b = read_csv(tmp_path / "ref" / "timeseries.csv"), read_csv(cut / "timeseries.csv")
+    assert a.shape == b.shape and np.allclose(a, b, rtol=RTOL, atol=RTOL * np.abs(a).max(axis=0))
+    fa, fb = _h5_fields(tmp_path / "ref"), _h5_fields(cut)
+    assert sorted(fa) == sorted(fb) and len(fa) == 4 * 31         # 4 fields at steps 0, 20, ..., 600
+    for k in fa:
+        assert np.allclose(fa[k], fb[k], rtol=0, atol=RTOL * max(np.abs(fa[k]).max(), 1e-300)), k
+    assert json.loads((cut / "run.json").read_text())["status"] == "finished"
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="kills a separate serial process")
+def test_restart_sets_damaged_hdf5_aside(tmp_path):
+    """If the kill hit a write and left solution.h5 unreadable, the restart says so, moves
+    the file aside (solution.damaged.h5) and continues in new files; the CSV is complete."""
+    args = ["membrane", "--N", "16", "--dt", "2e-3", "--T", "0.4", "--write-every", "10",
+            "--checkpoint-every", "40", "--quiet"]
+    cmd = [sys.executable, "-m", "sdm_dolfinx"] + args
+    cut = tmp_path / "cut"
+    step = _run_until_killed(cmd, cut, 60)
+    (cut / "solution.h5").write_bytes(b"\x89HDF\r\n\x1a\n" + b"\0" * 64)       # a torn header
+    r = subprocess.run([sys.executable, "-m", "sdm_dolfinx", "membrane", "--restart", str(cut)],
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    assert "could not be read" in r.stderr and "solution.damaged.h5" in r.stderr
+    assert (cut / "solution.damaged.h5").exists()
+    times = sorted({t for _, t in _h5_fields(cut)})
+    assert times[0] > step * 2e-3 - 1e-12 and np.isclose(times[-1], 0.4)
+    assert np.array_equal(read_csv(cut / "timeseries.csv")[:, 0], np.arange(201))
+
+
+def test_overwrite_discards_the_old_checkpoint(mpi_tmp_path):
+    """A run started with --overwrite (or into an empty folder) never resumes another
+    run's checkpoint: the old checkpoint.npz is removed when the new run starts, and a
+    checkpoint copied in from another run is refused by its run_id."""
+    kw = dict(pair="P1+/P0", dt=1e-2, T=0.3)
+    out, other = mpi_tmp_path / "a", mpi_tmp_path / "b"
+    simulate(membrane.Problem(N=6), out=out, checkpoint_every=5, **kw)      # finished, checkpoint at 30
+    with pytest.raises(KeyboardInterrupt):                                  # the replacement dies at step 3
+        simulate(membrane.Problem(N=6), out=out, checkpoint_every=5,
+                 on_step=lambda n, row: (_ for _ in ()).throw(KeyboardInterrupt()) if n == 3 else None, **kw)
+    with pytest.raises(CheckpointError, match="no checkpoint"):
+        simulate(membrane.Problem(N=6), out=out, restart=True, **kw)
+    simulate(membrane.Problem(N=6), out=other, checkpoint_every=5, **kw)
+    if COMM.rank == 0:
+        (out / "checkpoint.npz").write_bytes((other / "checkpoint.npz").read_bytes())
+    COMM.Barrier()
+    with pytest.raises(CheckpointError, match="another run"):
+        simulate(membrane.Problem(N=6), out=out, restart=True, **kw)
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="starts its own mpirun")
+def test_exception_on_one_rank_aborts_every_rank(tmp_path):
+    """An unexpected exception on rank 1 only (injected into the probe) takes both ranks
+    down at once: one line naming the rank, a non-zero status, no hang."""
+    script = tmp_path / "inject.py"
+    script.write_text(
+        "import sys\nfrom mpi4py import MPI\nfrom sdm_dolfinx import cli, output\n"
+        "orig, n = output.PointProbe.__call__, [0]\n"
+        "def bad(self, U):\n    n[0] += 1\n"
+        "    if MPI.COMM_WORLD.rank == 1 and n[0] == 6:\n        raise RuntimeError('injected on rank 1')\n"
+        "    return orig(self, U)\n"
+        "output.PointProbe.__call__ = bad\nsys.exit(cli.main(sys.argv[1:]))\n")
+    env = {**os.environ, "OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
+           "OMPI_MCA_btl": "self,vader", "OMPI_MCA_rmaps_base_oversubscribe": "1"}
+    t0 = time.time()
+    p = subprocess.run(["mpirun", "-n", "2", sys.executable, str(script), "membrane", "--N", "8", "--dt", "1e-2",
+                        "--T", "0.3", "--quiet", "--out", str(tmp_path / "run")],
+                       capture_output=True, text=True, timeout=240, env=env)
+    assert p.returncode != 0
+    assert "internal error on rank 1: RuntimeError: injected on rank 1" in p.stderr
+    assert "Traceback" not in p.stderr
+    assert time.time() - t0 < 120
+
+
 def _write(path, text):
     if COMM.rank == 0:
-        path.write_text(text)
+        path.write_bytes(text if isinstance(text, bytes) else text.encode())
     COMM.Barrier()
     return str(path)
 
@@ -171,6 +297,13 @@ BAD = [
     (["disc", "--gravity", "inf"], None, "--gravity"),
     (["disc"], 'problem = "membrane"\n', "key 'problem'"),
     (["disc"], "level = 2.5\n", "key 'level'"),
+    (["membrane", "--f", "nan"], None, "--f"),
+    (["membrane", "--u0", "inf"], None, "--u0"),
+    (["membrane", "--obstacle", "nan"], None, "--obstacle"),
+    (["membrane"], "g = 1e400\n", "--g"),
+    (["membrane", "--dt", "1e-300", "--T", "1"], None, "at most"),
+    (["membrane"], "write_every = 2\nwrite-every = 3\n", "same option"),
+    (["membrane"], b"\xff\xfe\x00N = 3\n", "not a TOML file"),
 ]
 
 
@@ -189,6 +322,34 @@ def test_bad_input_is_refused(argv, toml, message, mpi_tmp_path, capsys):
         assert message in err and len(err.strip().splitlines()) == 1, err
         assert "Traceback" not in err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("status,checkpoint,message", [
+    ("finished", False, "finished run"), ("failed", False, "failed run"),
+    ("interrupted", True, "--restart"), ("running", True, "--restart"), ("running", False, "killed")])
+def test_unfinished_work_is_not_overwritten(status, checkpoint, message, mpi_tmp_path, capsys):
+    """A folder holding a run (finished, failed, interrupted, killed or still going) is
+    refused without --overwrite, naming --restart when a checkpoint can continue it; with
+    --overwrite the new run replaces it."""
+    out = mpi_tmp_path / "run"
+    if COMM.rank == 0:
+        out.mkdir()
+        (out / "run.json").write_text(json.dumps({"status": status}))
+        (out / "timeseries.csv").write_text("precious\n")
+        if checkpoint:
+            (out / "checkpoint.npz").write_bytes(b"state")
+    COMM.Barrier()
+    argv = ["membrane", "--N", "4", "--dt", "1e-2", "--T", "0.02", "--quiet", "--out", str(out)]
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err
+    if COMM.rank == 0:
+        assert message in err and len(err.strip().splitlines()) == 1, err
+        assert (out / "timeseries.csv").read_text() == "precious\n"
+    COMM.Barrier()
+    assert cli.main(argv + ["--overwrite"]) == 0
+    if COMM.rank == 0:
+        assert not (out / "checkpoint.npz").exists()
+        assert json.loads((out / "run.json").read_text())["status"] == "finished"
 
 
 def test_config_file_and_command_line_override(mpi_tmp_path):
