@@ -125,9 +125,10 @@ def add_run_arguments(p, defaults):
                         "(same number of ranks)")
     p.epilog = ("PETSc options of the step solver can be added as -sdm_<option>: -sdm_vi_rtol (default 1e-10, "
                 "complementarity tolerance relative to the right-hand side), -sdm_vi_max_it (default 500 for "
-                "ssn, 60 for SNES), -sdm_vi_monitor (a line per iteration); semi-smooth Newton: -sdm_ksp_*, "
-                "-sdm_factor_pc_factor_mat_solver_type; SNES (--vi-solver vinewtonrsls): -sdm_snes_* "
-                "(e.g. -sdm_snes_monitor), -sdm_ksp_*, -sdm_pc_*.")
+                "ssn, 60 for SNES), -sdm_vi_monitor (a line per iteration); the semi-smooth Newton is a PETSc SNES "
+                "of type python: -sdm_snes_monitor, -sdm_snes_converged_reason, -sdm_snes_max_it, -sdm_snes_view, "
+                "and -sdm_ksp_*, -sdm_factor_pc_factor_mat_solver_type for its linear solves; with --vi-solver "
+                "vinewtonrsls: -sdm_snes_*, -sdm_ksp_*, -sdm_pc_*.")
 
 
 def build_parser():

@@ -12,7 +12,8 @@ the (U, V) block formulation) whose Dirichlet rows are identity rows.
   paper's own solver). Its linear systems are K restricted to the inactive set, solved by
   one of :data:`LINEAR_STRATEGIES` (default ``auto``: one factorisation of K per run and
   the active set by a small dense Schur complement, or CG + AMG when there are many
-  constraints; measurements in ``bench/README.md``).
+  constraints; measurements in ``bench/README.md``). It runs as a PETSc SNES of type
+  python (prefix ``sdm_``), so SNES monitors, options and converged reasons apply.
 * :class:`SnesVI` — PETSc SNES ``vinewtonrsls`` (or ``vinewtonssls``) for comparison.
 
 Both raise :class:`VIError` (with the PETSc / active-set reason) when they fail.
@@ -263,6 +264,7 @@ class Factorisation:
             kind, package = ("cholesky" if spd else "lu"), ("cholmod" if size1 and spd else "mumps")
         ksp = factorise(M, comm, prefix, kind, package, agree=self.comm)
         self.ksp, self.M = ksp, M
+        self.package = ksp.getPC().getFactorSolverType()
         self.F = ksp.getPC().getFactorMatrix()
         self.ra, self.xa = M.createVecLeft(), M.createVecRight()
         self.solves = 0
@@ -458,6 +460,26 @@ class SemismoothNewton:
         self._KA = self._KA_mask = None
         with _options(prefix, options):
             self._setup()
+            self.snes = self._make_snes()
+        self.max_it = self.snes.getTolerances()[3]       # -sdm_snes_max_it may change it
+
+    def _make_snes(self):
+        """The semi-smooth Newton as a PETSc SNES of type python (prefix ``sdm_``): SNES
+        monitors (``-sdm_snes_monitor``: the Alart–Curnier residual of each iteration),
+        ``-sdm_snes_converged_reason``, ``-sdm_snes_max_it``, ``-sdm_snes_view`` and the
+        converged reason apply as for any SNES."""
+        snes = PETSc.SNES().create(self.comm)
+        snes.setOptionsPrefix(self.prefix)
+        snes.setType("python")
+        snes.setPythonContext(_SnesContext(self))
+        self._F = self.K.createVecLeft()
+        snes.setFunction(_lcp_residual(self.K), self._F)
+        snes.setTolerances(max_it=self.max_it)
+        ksp = snes.getKSP()             # not used: the iterations solve with self.ksp / self.fac
+        ksp.setType("preonly")
+        ksp.getPC().setType("none")
+        snes.setFromOptions()
+        return snes
 
     def _setup(self):
         K, n = self.K, self.K.getLocalSize()[0]
@@ -642,6 +664,23 @@ class SemismoothNewton:
     def solve(self, b, x):
         """Solve the LCP for right-hand side b; x holds the initial guess and the result.
 
+        Runs :meth:`newton` through the SNES (see :meth:`_make_snes`).
+
+        Returns:
+            dict with ``its`` (Newton iterations) and ``n_active``.
+
+        Raises:
+            VIError: no convergence, or a failed linear solve (with the reason).
+        """
+        self._result = self._error = None
+        self.snes.solve(b, x)
+        if self._error is not None:
+            raise self._error
+        return self._result
+
+    def newton(self, b, x, snes=None):
+        """Solve the LCP for right-hand side b; x holds the initial guess and the result.
+
         Each iteration exchanges the infeasible constraints between the active and the
         inactive set (active with lam < 0: release; inactive with x < lb: add), which is the
         primal-dual active set / semi-smooth Newton step. For matrices that are not
@@ -668,6 +707,8 @@ class SemismoothNewton:
         gidx = self.K.getOwnershipRange()[0] + c           # global indices, for Murty's rule
         best, patience = np.inf, 3
         for it in range(1, self.max_it + 1):
+            if snes is not None:
+                snes.setIterationNumber(it - 1)
             # Newton step: x_A = lb_A, K_II x_I = b_I - K_IA lb_A
             by_schur = schur and self._schur_system(active)
             if by_schur:
@@ -680,6 +721,12 @@ class SemismoothNewton:
             infeasible = np.where(active, lam < -tol_lam, xc < lb - tol_x)
             n_inf = self.comm.allreduce(int(np.count_nonzero(infeasible)), op=MPI.SUM)
             self.lam, self.active = lam, active
+            if snes is not None:        # the Alart–Curnier residual |lam - max(0, lam - r (x - lb))|
+                res = np.where(active, np.minimum(lam, 0.0), self.r * np.minimum(xc - lb, 0.0))
+                fnorm = float(np.sqrt(self.comm.allreduce(float(res @ res), op=MPI.SUM)))
+                snes.setIterationNumber(it)
+                snes.setFunctionNorm(fnorm)
+                snes.monitor(it, fnorm)
             if self.monitor:
                 n_act = self.comm.allreduce(int(np.count_nonzero(active)), op=MPI.SUM)
                 if self.comm.rank == 0:
@@ -702,6 +749,7 @@ class SemismoothNewton:
                       f"({n_inf} constraints still infeasible)")
 
     def destroy(self):
+        self.snes.destroy()
         self.ksp.destroy()
         if self._KA is not None:
             self._KA.destroy()
@@ -711,6 +759,38 @@ class SemismoothNewton:
             self.ksp_amg.destroy()
         if self.fac is not None:
             self.fac.destroy()
+
+
+def _lcp_residual(K):
+    """SNES function callback F(x) = K x - b (b: the SNES right-hand side, applied by PETSc)."""
+    def residual(snes, x, F):
+        K.mult(x, F)
+    return residual
+
+
+class _SnesContext:
+    """python-type SNES context: the semi-smooth Newton iterations of a
+    :class:`SemismoothNewton`, with their converged reason."""
+
+    def __init__(self, ssn):
+        self.ssn = ssn
+
+    def view(self, snes, viewer):
+        ssn = self.ssn
+        fac = "" if ssn.fac is None else (f", one {ssn.fac.package} factorisation per run"
+                                          + (" (redundant: one per rank)" if ssn.fac.redundant else ""))
+        viewer.printfASCII(f"    semi-smooth Newton (primal-dual active set) on {ssn.num_constraints} bounds: "
+                           f"linear strategy {ssn.linear}{fac}, complementarity tolerance {ssn.rtol:g} x max|b|, "
+                           f"Alart-Curnier r = {ssn.r:.6g}\n")
+
+    def solve(self, snes, b, x):
+        R = PETSc.SNES.ConvergedReason
+        try:
+            self.ssn._result = self.ssn.newton(b, x, snes)
+            snes.setConvergedReason(R.CONVERGED_FNORM_ABS)
+        except VIError as e:                 # raised again by SemismoothNewton.solve
+            self.ssn._error = e
+            snes.setConvergedReason(R.DIVERGED_MAX_IT if "did not converge" in str(e) else R.DIVERGED_LINEAR_SOLVE)
 
 
 class SnesVI:

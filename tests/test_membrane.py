@@ -177,6 +177,32 @@ def test_vinewtonrsls_cycles_on_p2p1_where_the_semismooth_newton_converges():
     assert ts["n_active"].max() > 0 and ts["newton_its"].max() <= 3
 
 
+def test_semismooth_newton_is_a_petsc_snes(capfd):
+    """The default step solver is a PETSc SNES (type python, prefix sdm_): -sdm_snes_monitor
+    prints the Alart-Curnier residual at each iteration, zero (to the tolerance) at the last
+    one of every step; -sdm_snes_converged_reason one line per step; -sdm_snes_max_it limits
+    the iterations like -sdm_vi_max_it."""
+    from petsc4py import PETSc
+    opts = PETSc.Options()
+    opts["sdm_snes_converged_reason"] = ""      # read at each solve: as from the command line
+    try:
+        ts = simulate(membrane.Problem(N=6), pair="P1+/P0", dt=1e-2, T=0.3,
+                      petsc_options={"snes_monitor": ""}).timeseries
+    finally:
+        opts.delValue("sdm_snes_converged_reason")
+    out = capfd.readouterr().out.splitlines()
+    norms = [float(ln.split()[-1]) for ln in out if "SNES Function norm" in ln]
+    reasons = [ln for ln in out if "solve converged due to CONVERGED_FNORM_ABS" in ln]
+    if COMM.rank == 0:
+        its = ts["newton_its"][1:].astype(int)
+        assert len(norms) == its.sum() and len(reasons) == len(its) == 30
+        last = np.cumsum(its) - 1
+        assert np.all(np.array(norms)[last] == 0.0)           # no infeasible bound left
+        assert max(norms) > 0                                 # some iterations corrected an active set
+    with pytest.raises(StepError, match="did not converge in 1 iterations"):
+        simulate(membrane.Problem(N=6), pair="P1+/P0", dt=1e-2, T=0.3, petsc_options={"snes_max_it": "1"})
+
+
 def test_solver_monitor_prints_each_iteration(capfd):
     """-sdm_vi_monitor prints one line per semi-smooth Newton iteration (on rank 0)."""
     ts = simulate(membrane.Problem(N=6), pair="P1+/P0", dt=1e-2, T=0.3,
