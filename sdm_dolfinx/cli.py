@@ -25,7 +25,7 @@ from . import disc, membrane
 from .checkpoint import CheckpointError
 from .integrator import SCHEMES, StepError
 from .pairs import MASS_TREATMENTS, PAIRS, get_pair
-from .simulate import Interrupted, num_steps, simulate
+from .simulate import Interrupted, SolverSetupError, num_steps, simulate
 from .vi import LINEAR_STRATEGIES, VI_SOLVERS
 
 PROBLEMS = {"membrane": membrane, "disc": disc}
@@ -432,6 +432,11 @@ def _run(args, argv, mod, parser, comm):
         if comm.rank == 0:
             print(f"{prog}: error: {e}", file=sys.stderr, flush=True)
         return 2
+    except SolverSetupError as e:       # nothing written yet; with -sdm_ options most likely theirs
+        user = any(a.startswith("-sdm_") for a in argv)
+        if comm.rank == 0:
+            print(f"{prog}: error: {e}" + ("; check the -sdm_ options" if user else ""), file=sys.stderr, flush=True)
+        return 2 if user else 1
     except Interrupted as e:
         if comm.rank == 0:
             print(f"{prog}: {e}", file=sys.stderr, flush=True)

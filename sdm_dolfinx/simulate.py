@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from mpi4py import MPI
+from petsc4py import PETSc
 
 import numpy as np
 
@@ -133,7 +134,10 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
     wall0 = time.perf_counter()
     comm = problem.mesh.comm
     disc = Discretisation(problem, pair, mass)
-    integ = Integrator(disc, scheme, dt, vi_solver, linear, petsc_options)
+    try:
+        integ = Integrator(disc, scheme, dt, vi_solver, linear, petsc_options)
+    except PETSc.Error as e:            # e.g. a -sdm_ option PETSc does not accept
+        raise SolverSetupError(f"PETSc could not set up the step solver: {_petsc_message(e)}") from None
     nsteps = num_steps(T, dt)
     setup_time = time.perf_counter() - wall0
     columns = BASE_COLUMNS + tuple(problem.extra_columns)
@@ -308,6 +312,16 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
         write_json(out / "run.json", info, comm)
     integ.destroy()
     return Result(series, info, gap_imposed, gap_end, U, V, disc)
+
+
+class SolverSetupError(RuntimeError):
+    """The step solver could not be set up (nothing was written)."""
+
+
+def _petsc_message(e):
+    """The informative line of a PETSc error (its last non-empty line) and its code."""
+    lines = [ln.split("] ", 1)[-1].strip() for ln in str(e).splitlines() if ln.strip()]
+    return f"{lines[-1] if lines else 'unknown error'} (PETSc error {getattr(e, 'ierr', '?')})"
 
 
 def _check_identity(saved, now):

@@ -60,3 +60,21 @@ def test_no_traceback_from_a_real_process(tmp_path):
     h = subprocess.run([sys.executable, "-m", "sdm_dolfinx", "membrane", "--help"], capture_output=True, text=True,
                        timeout=120)
     assert h.returncode == 0 and "--pair" in h.stdout and "--dt" in h.stdout
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="starts its own python processes: serial only")
+@pytest.mark.parametrize("option,message", [
+    (["-sdm_ksp_type", "nonsense"], "Unable to find requested KSP type nonsense"),
+    (["-sdm_ksp_max_it", "abc"], "Input string abc has no integer value"),
+    (["-sdm_factor_pc_factor_mat_solver_type", "nonsense"], "Could not locate solver type nonsense")])
+def test_petsc_rejecting_an_option_is_bad_input(option, message, tmp_path):
+    """A -sdm_ option PETSc refuses stops the run before anything is written, with status 2
+    and PETSc's own reason in one line (a separate process: PETSc's options database would
+    otherwise keep the bad option for the following tests)."""
+    out = tmp_path / "x"
+    p = subprocess.run([sys.executable, "-m", "sdm_dolfinx", "membrane", "--N", "4", "--T", "0.02", "--dt", "1e-2",
+                        "--quiet", "--out", str(out), *option], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 2, p.stderr
+    assert message in p.stderr and "check the -sdm_ options" in p.stderr
+    assert "Traceback" not in p.stderr and len(p.stderr.strip().splitlines()) == 1
+    assert not out.exists()
