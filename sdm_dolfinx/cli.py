@@ -23,6 +23,7 @@ from petsc4py import PETSc
 
 from . import disc, membrane
 from .checkpoint import CheckpointError
+from .disc_mesh import MeshError
 from .integrator import SCHEMES, StepError
 from .pairs import MASS_TREATMENTS, PAIRS, get_pair
 from .simulate import Interrupted, SolverSetupError, num_steps, simulate
@@ -408,8 +409,13 @@ def internal_error(prog, e, comm):
 
 def _run(args, argv, mod, parser, comm):
     progress = not args.quiet
-    problem = mod.problem_from_args(args, comm)
     prog = f"{parser.prog} {args.command}"
+    try:
+        problem = mod.problem_from_args(args, comm)
+    except MeshError as e:              # raised on every rank, before anything is written
+        if comm.rank == 0:
+            print(f"{prog}: error: {e}", file=sys.stderr, flush=True)
+        return 2
     if progress and comm.rank == 0:
         what = f"restarting {args.restart}" if args.restart else f"-> {args.out}"
         print(f"sdm_dolfinx {args.command}: pair {args.pair}, {args.scheme}, dt = {args.dt}, T = {args.T} "

@@ -9,6 +9,8 @@ lowest point) 10 mm above the foundation, rho = 1e-6 t/mm^3, lambda = 300 N/mm^2
 mu = 150 N/mm^2, g = 9810 mm/s^2, initial velocity -1000 mm/s, T = 0.02 s. (Table 1 of
 the paper mixes units; these are the consistent values.)
 """
+from pathlib import Path
+
 from mpi4py import MPI
 from petsc4py import PETSc
 
@@ -17,13 +19,14 @@ import ufl
 from dolfinx import fem, mesh as dmesh
 
 from . import compat, problem as _problem
-from .disc_mesh import ALGORITHM, LEVELS, LOWER, make_mesh
+from .disc_mesh import ALGORITHM, LEVELS, LOWER, make_mesh, read_mesh
 
 #: the potential contact zones: the lower half circle (y <= centre) or the whole boundary
 CONTACT_ZONES = ("lower", "all")
 
 #: the unit of every parameter and time-series column (for run.json; --help states them too)
-UNITS = {"level": "-", "h": "mm (gmsh mesh size)", "radius": "mm", "centre": "mm",
+UNITS = {"level": "-", "h": "mm (gmsh mesh size)", "mesh_file": "- (gmsh file read instead of generating)",
+         "radius": "mm", "centre": "mm",
          "height": "mm (initial height of the lowest point A above the foundation y = 0)",
          "rho": "t/mm^3", "lame_lambda": "N/mm^2", "lame_mu": "N/mm^2", "gravity": "mm/s^2 (downward)",
          "v0": "mm/s (vertical, whole disc; < 0 downward)", "mass": "t per mm of thickness (rho pi R^2)",
@@ -45,7 +48,8 @@ def sigma(u, lame_lambda, lame_mu):
 
 
 def Problem(level=1, h=None, radius=20.0, height=10.0, rho=1e-6, lame_lambda=300.0, lame_mu=150.0,
-            gravity=9810.0, v0=-1000.0, contact_zone="lower", with_contact=True, comm=MPI.COMM_WORLD):
+            gravity=9810.0, v0=-1000.0, contact_zone="lower", with_contact=True, comm=MPI.COMM_WORLD,
+            mesh_file=None):
     """The paper's falling disc.
 
     Args:
@@ -60,13 +64,21 @@ def Problem(level=1, h=None, radius=20.0, height=10.0, rho=1e-6, lame_lambda=300
         contact_zone: ``"lower"`` (boundary vertices with y <= centre) or ``"all"``.
         with_contact: False removes the foundation (free flight, for conservation checks).
         comm: the communicator the mesh lives on.
+        mesh_file: a gmsh ``.msh`` file of this disc (linear or curved triangles) used
+            instead of the generated mesh (``level`` and ``h`` are then not used); its
+            bounding box must be the disc of ``radius`` with A at ``height``
+            (:func:`sdm_dolfinx.disc_mesh.read_mesh`).
     """
     if contact_zone not in CONTACT_ZONES:
         raise ValueError(f"unknown contact zone {contact_zone!r}; choose one of {', '.join(CONTACT_ZONES)}")
-    level = level if h is None else None        # an explicit h is not a named level
-    h = float(LEVELS[level] if h is None else h)
     cy = radius + height
-    msh, ft = make_mesh(h, radius=radius, centre=(0.0, cy), comm=comm)
+    if mesh_file is not None:
+        level = h = None
+        msh, ft = read_mesh(mesh_file, radius, (0.0, cy), comm=comm)
+    else:
+        level = level if h is None else None        # an explicit h is not a named level
+        h = float(LEVELS[level] if h is None else h)
+        msh, ft = make_mesh(h, radius=radius, centre=(0.0, cy), comm=comm)
     tdim = msh.topology.dim
     # vertices on the lower half circle: tolerance relative to the radius (gmsh puts the
     # two equator points exactly at y = cy)
@@ -102,7 +114,8 @@ def Problem(level=1, h=None, radius=20.0, height=10.0, rho=1e-6, lame_lambda=300
         probe=(0.0, height),
         extra_columns=("contact_force", "momentum_y", "elastic"),
         momentum_component=1,
-        parameters={"level": level, "h": h, "radius": radius,
+        parameters={"level": level, "h": h, "mesh_file": None if mesh_file is None else str(mesh_file),
+                    "radius": radius,
                     "height": height, "centre": [0.0, cy], "rho": rho, "lame_lambda": lame_lambda,
                     "lame_mu": lame_mu, "gravity": gravity, "v0": v0, "contact_zone": contact_zone,
                     "contact_nodes": "vertices", "with_contact": with_contact, "plane": "strain",
@@ -129,6 +142,9 @@ def add_arguments(parser):
                    help="mesh level; P2 dofs close to the paper's Table 2 (622, 2782, 11306, 45706, 126892, "
                         "511386) (default 1)")
     g.add_argument("--h", type=float, default=None, help="gmsh mesh size in mm (overrides --level)")
+    g.add_argument("--mesh", type=Path, default=None, metavar="FILE",
+                   help="a gmsh .msh file of the disc (3- or 6-node triangles, mm) instead of --level/--h; its "
+                        "bounding box must match --radius and --height")
     g.add_argument("--radius", type=float, default=20.0, help="disc radius in mm (default 20)")
     g.add_argument("--height", type=float, default=10.0,
                    help="initial height of the lowest point A above the foundation, in mm (default 10)")
@@ -156,6 +172,11 @@ def check_arguments(args):
     errors += [f"{k} must be a finite number" for k in bad]
     if bad:
         return errors
+    if args.mesh is not None:
+        if args.h is not None:
+            errors.append("--mesh and --h: choose one")
+        elif not args.mesh.is_file():
+            errors.append(f"--mesh {args.mesh}: no such file")
     if args.h is not None and not 0 < args.h <= args.radius:
         errors.append(f"--h must be in (0, radius] mm (got {args.h})")
     if args.radius <= 0:
@@ -176,4 +197,5 @@ def problem_from_args(args, comm):
     """The disc :func:`Problem` from the command line's parsed options."""
     return Problem(level=args.level, h=args.h, radius=args.radius, height=args.height, rho=args.rho,
                    lame_lambda=args.lame_lambda, lame_mu=args.lame_mu, gravity=args.gravity, v0=args.v0,
-                   contact_zone=args.contact_zone, with_contact=not args.no_contact, comm=comm)
+                   contact_zone=args.contact_zone, with_contact=not args.no_contact, comm=comm,
+                   mesh_file=getattr(args, "mesh", None))

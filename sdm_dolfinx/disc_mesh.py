@@ -3,7 +3,8 @@
 The disc is built on one rank with gmsh's built-in kernel from four quarter arcs, so its
 lowest point A is a mesh vertex; ``setOrder(2)`` puts the edge midpoints of boundary
 triangles on the circle (P2 geometry). dolfinx then distributes it. No mesh file is
-stored: the same gmsh version gives the same mesh.
+stored: the same gmsh version gives the same mesh. ``disc --mesh FILE.msh`` reads a mesh of
+one's own instead (:func:`read_mesh`; :func:`write_msh` writes ours as a starting point).
 """
 from mpi4py import MPI
 
@@ -27,13 +28,66 @@ ALGORITHM = 1
 PAPER_DOFS = {1: 622, 2: 2782, 3: 11306, 4: 45706, 5: 126892, 6: 511386}
 
 
+class MeshError(ValueError):
+    """A mesh file that cannot be used (missing, unreadable, not the disc)."""
+
+
+def _build_model(gmsh, h, radius, centre, order, algorithm):
+    """The disc in gmsh's current model: four quarter arcs (A is a vertex), physical groups
+    1 (the surface), :data:`LOWER` and :data:`UPPER` (the half circles), meshed."""
+    gmsh.option.setNumber("General.Terminal", 0)
+    gmsh.model.add("disc")
+    cx, cy = centre
+    geo = gmsh.model.geo
+    c = geo.addPoint(cx, cy, 0.0, h)          # the arcs' centre (not a mesh node)
+    # bottom (A), right, top, left: A is a vertex of the mesh
+    pts = [geo.addPoint(cx + radius * np.cos(t), cy + radius * np.sin(t), 0.0, h)
+           for t in (-np.pi / 2, 0.0, np.pi / 2, np.pi)]
+    arcs = [geo.addCircleArc(pts[i], c, pts[(i + 1) % 4]) for i in range(4)]
+    loop = geo.addCurveLoop(arcs)
+    surf = geo.addPlaneSurface([loop])
+    geo.synchronize()
+    gmsh.model.addPhysicalGroup(2, [surf], 1)
+    # arcs 0 (A -> right) and 3 (left -> A) form the lower half circle
+    gmsh.model.addPhysicalGroup(1, [arcs[0], arcs[3]], LOWER)
+    gmsh.model.addPhysicalGroup(1, [arcs[1], arcs[2]], UPPER)
+    gmsh.option.setNumber("Mesh.MeshSizeMin", h)
+    gmsh.option.setNumber("Mesh.MeshSizeMax", h)
+    gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
+    gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
+    gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 1)
+    gmsh.option.setNumber("Mesh.Algorithm", algorithm)
+    gmsh.option.setNumber("Mesh.SecondOrderLinear", 0)   # midpoints on the circle
+    gmsh.model.mesh.generate(2)
+    gmsh.model.mesh.setOrder(order)
+
+
+class _Gmsh:
+    """gmsh initialised and finalised around a block; gmsh >= 4.9 lets us see a session
+    the caller opened and leave it open (gmsh 4.8 cannot tell: do not call these functions
+    inside your own gmsh session there)."""
+
+    def __enter__(self):
+        import gmsh
+        self.gmsh = gmsh
+        # gmsh < 4.9 has no isInitialized: then assume nobody else uses gmsh
+        self.owner = not getattr(gmsh, "isInitialized", lambda: False)()
+        if self.owner:
+            gmsh.initialize()
+        return gmsh
+
+    def __exit__(self, *exc):
+        if self.owner:
+            self.gmsh.finalize()
+        else:
+            self.gmsh.model.remove()                   # leave the caller's gmsh as it was
+
+
 def make_mesh(h, radius=20.0, centre=(0.0, 30.0), comm=MPI.COMM_WORLD, rank=0, order=2, algorithm=ALGORITHM):
     """The disc of radius ``radius`` centred at ``centre`` with gmsh mesh size ``h``.
 
-    Only ``rank`` runs gmsh, initialised and finalised here; gmsh >= 4.9 lets us see a
-    session the caller opened and leave it open (gmsh 4.8 cannot tell: do not call this
-    inside your own gmsh session there). The mesh is then distributed over ``comm``;
-    every rank of ``comm`` must call this function.
+    Only ``rank`` runs gmsh; the mesh is then distributed over ``comm``; every rank of
+    ``comm`` must call this function.
 
     Args:
         h: gmsh mesh size (mm), see :data:`LEVELS`.
@@ -46,46 +100,82 @@ def make_mesh(h, radius=20.0, centre=(0.0, 30.0), comm=MPI.COMM_WORLD, rank=0, o
         (mesh, facet_tags) with facets tagged :data:`LOWER` (y <= centre) and :data:`UPPER`.
     """
     if comm.rank == rank:
-        import gmsh
-        # gmsh < 4.9 has no isInitialized: then assume nobody else uses gmsh
-        owner = not getattr(gmsh, "isInitialized", lambda: False)()
-        if owner:
-            gmsh.initialize()
-        try:
-            gmsh.option.setNumber("General.Terminal", 0)
-            gmsh.model.add("disc")
-            cx, cy = centre
-            geo = gmsh.model.geo
-            c = geo.addPoint(cx, cy, 0.0, h)          # the arcs' centre (not a mesh node)
-            # bottom (A), right, top, left: A is a vertex of the mesh
-            pts = [geo.addPoint(cx + radius * np.cos(t), cy + radius * np.sin(t), 0.0, h)
-                   for t in (-np.pi / 2, 0.0, np.pi / 2, np.pi)]
-            arcs = [geo.addCircleArc(pts[i], c, pts[(i + 1) % 4]) for i in range(4)]
-            loop = geo.addCurveLoop(arcs)
-            surf = geo.addPlaneSurface([loop])
-            geo.synchronize()
-            gmsh.model.addPhysicalGroup(2, [surf], 1)
-            # arcs 0 (A -> right) and 3 (left -> A) form the lower half circle
-            gmsh.model.addPhysicalGroup(1, [arcs[0], arcs[3]], LOWER)
-            gmsh.model.addPhysicalGroup(1, [arcs[1], arcs[2]], UPPER)
-            gmsh.option.setNumber("Mesh.MeshSizeMin", h)
-            gmsh.option.setNumber("Mesh.MeshSizeMax", h)
-            gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
-            gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
-            gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 1)
-            gmsh.option.setNumber("Mesh.Algorithm", algorithm)
-            gmsh.option.setNumber("Mesh.SecondOrderLinear", 0)   # midpoints on the circle
-            gmsh.model.mesh.generate(2)
-            gmsh.model.mesh.setOrder(order)
+        with _Gmsh() as gmsh:
+            _build_model(gmsh, h, radius, centre, order, algorithm)
             msh, _, ft = compat.model_to_mesh(gmsh.model, comm, rank, gdim=2)
-        finally:
-            if owner:
-                gmsh.finalize()
-            else:
-                gmsh.model.remove()                   # leave the caller's gmsh as it was
     else:
         msh, _, ft = compat.model_to_mesh(None, comm, rank, gdim=2)
     return msh, ft
+
+
+def write_msh(path, h, radius=20.0, centre=(0.0, 30.0), order=2, algorithm=ALGORITHM):
+    """Write the disc :func:`make_mesh` builds to a gmsh ``.msh`` file (serial, no dolfinx):
+    a starting point for a mesh of one's own, read back with ``disc --mesh``."""
+    with _Gmsh() as gmsh:
+        _build_model(gmsh, h, radius, centre, order, algorithm)
+        gmsh.write(str(path))
+
+
+def _check_msh(path):
+    """None if ``path`` is a gmsh file with 2-D triangles (linear or quadratic), else why not."""
+    from pathlib import Path
+    path = Path(path)
+    if not path.is_file():
+        return f"{path}: no such file"
+    try:
+        with _Gmsh() as gmsh:
+            gmsh.option.setNumber("General.Terminal", 0)
+            gmsh.open(str(path))
+            types = set(gmsh.model.mesh.getElementTypes(2)) if gmsh.model.getDimension() >= 2 else set()
+            groups = gmsh.model.getPhysicalGroups(2)
+    except Exception as e:                      # gmsh raises a plain Exception
+        return f"{path}: gmsh cannot read it ({str(e).strip() or type(e).__name__})"
+    if not types or not types <= {2, 9}:        # 3-node and 6-node triangles
+        return f"{path}: no 2-D triangle mesh in it (element types {sorted(types) or 'none'})"
+    if not groups:
+        return f"{path}: no physical surface group (dolfinx reads the cells of physical groups)"
+    return None
+
+
+def read_mesh(path, radius, centre, comm=MPI.COMM_WORLD, rank=0):
+    """The disc's mesh from a gmsh file: (mesh, facet_tags), the boundary facets tagged
+    :data:`LOWER` (all nodes at y <= centre) and :data:`UPPER` from their coordinates, so
+    that any mesh of the disc works. Raises :class:`MeshError` (on every rank) when the
+    file is missing or unreadable, or when its bounding box is not the disc of ``radius``
+    centred at ``centre`` (1 % of the radius)."""
+    err = _check_msh(path) if comm.rank == rank else None
+    err = comm.bcast(err, root=rank)
+    if err:
+        raise MeshError(err)
+    # gmsh opens the file on ``rank`` and dolfinx distributes the model, as for make_mesh
+    # (dolfinx 0.5.2's own gmshio.read_from_msh fails: it returns an undefined name)
+    if comm.rank == rank:
+        with _Gmsh() as gmsh:
+            gmsh.option.setNumber("General.Terminal", 0)
+            gmsh.open(str(path))
+            msh = compat.model_to_mesh(gmsh.model, comm, rank, gdim=2)[0]
+    else:
+        msh = compat.model_to_mesh(None, comm, rank, gdim=2)[0]
+    x = msh.geometry.x
+    lo, hi = np.empty(2), np.empty(2)
+    comm.Allreduce(np.ascontiguousarray(x[:, :2].min(axis=0, initial=np.inf)), lo, op=MPI.MIN)
+    comm.Allreduce(np.ascontiguousarray(x[:, :2].max(axis=0, initial=-np.inf)), hi, op=MPI.MAX)
+    want_lo, want_hi = np.subtract(centre, radius), np.add(centre, radius)
+    if np.max(np.abs(np.concatenate([lo - want_lo, hi - want_hi]))) > 0.01 * radius:
+        raise MeshError(f"{path}: the mesh spans x in [{lo[0]:.4g}, {hi[0]:.4g}], y in [{lo[1]:.4g}, "
+                        f"{hi[1]:.4g}] mm, not the disc of radius {radius:g} centred at ({centre[0]:g}, "
+                        f"{centre[1]:g}): set --radius and --height to match it")
+    from dolfinx import mesh as dmesh
+    tdim = msh.topology.dim
+    msh.topology.create_connectivity(tdim - 1, tdim)
+    tol = 1e-8 * radius
+    lower = dmesh.locate_entities_boundary(msh, tdim - 1, lambda p: p[1] <= centre[1] + tol)
+    every = dmesh.locate_entities_boundary(msh, tdim - 1, lambda p: np.full(p.shape[1], True))
+    upper = np.setdiff1d(every, lower)
+    facets = np.concatenate([lower, upper]).astype(np.int32)
+    values = np.concatenate([np.full(len(lower), LOWER), np.full(len(upper), UPPER)]).astype(np.int32)
+    order = np.argsort(facets)
+    return msh, dmesh.meshtags(msh, tdim - 1, facets[order], values[order])
 
 
 def p2_dofs(msh):

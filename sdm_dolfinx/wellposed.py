@@ -39,6 +39,7 @@ from mpi4py import MPI
 import numpy as np
 
 from . import compat
+from .disc_mesh import MeshError
 from .discretisation import Discretisation
 from .pairs import PAIRS, get_pair
 
@@ -327,7 +328,7 @@ def _fmt_beta(b):
 
 def report(r):
     """A human-readable block for one result."""
-    names = {"N": "N", "level": "level", "h": "mesh size parameter", "diagonal": "diagonal"}
+    names = {"N": "N", "level": "level", "h": "mesh size parameter", "diagonal": "diagonal", "mesh_file": "mesh"}
     par = ", ".join(f"{names[k]} = {v}" for k, v in r["parameters"].items() if k in names and v is not None)
     lines = [
         f"{r['problem']} ({par}; largest cell diameter {r['h']:.4g}), pair {r['pair']}, {r['ranks']} rank(s)",
@@ -493,8 +494,8 @@ def _parse(argv, problems):
             errors.append(f"--sweep is not available for problem {args.problem}")
         elif not args.sweep:
             args.sweep = list(SWEEPS[args.problem][1])
-        if args.problem == "disc" and getattr(args, "h", None) is not None:
-            errors.append("--sweep runs the named --level meshes: drop --h (or inspect one --h at a time)")
+        if args.problem == "disc" and (getattr(args, "h", None) is not None or getattr(args, "mesh", None)):
+            errors.append("--sweep runs the named --level meshes: drop --h/--mesh (or inspect one mesh at a time)")
     elif args.png is not None:
         errors.append("--png needs --sweep")
     if errors:
@@ -556,6 +557,10 @@ def main(argv=None):
         if comm.rank == 0:
             print(f"{prog}: error: {e}", file=sys.stderr, flush=True)
         return 1
+    except MeshError as e:              # a --mesh file that cannot be used: bad input
+        if comm.rank == 0:
+            print(f"{prog}: error: {e}", file=sys.stderr, flush=True)
+        return 2
     if comm.rank == 0:
         if args.sweep is not None:
             args.png.parent.mkdir(parents=True, exist_ok=True)
