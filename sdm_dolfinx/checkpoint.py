@@ -166,44 +166,43 @@ def check_outputs(folder, step, comm):
     if comm.rank == 0:
         folder = Path(folder)
         csv = folder / "timeseries.csv"
-        last = -1
-        if csv.exists():
-            lines = csv.read_text().splitlines()
-            width = len(lines[0].split(",")) if lines else 0
-            steps = [int(ln.split(",", 1)[0]) for ln in lines[1:] if ln and len(ln.split(",")) == width]
-            last = max(steps, default=-1)
+        rows = _whole_rows(csv.read_text().splitlines()) if csv.exists() else []
+        last = max((int(ln.split(",", 1)[0]) for ln in rows[1:]), default=-1)
         if last < step:
             err = (f"{csv} ends at step {last}, before the checkpoint's step {step}: the checkpoint is "
                    f"not from the run in {folder}")
         else:
             res = {"moved": []}
-            for key, stem in (("solution", "solution"), ("state", "state")):
+            for stem in ("solution", "state"):
                 h5 = folder / f"{stem}.h5"
-                ok = h5.exists() and _readable_h5(h5)
-                if h5.exists() and not ok:
-                    for suffix in (".h5", ".xdmf"):
-                        src = folder / f"{stem}{suffix}"
+                res[stem] = h5.exists() and _readable_h5(h5)
+                if not res[stem]:               # its files (if any) go aside; new ones are started
+                    for src in (h5, folder / f"{stem}.xdmf"):
                         if src.exists():
-                            dst = folder / f"{stem}.damaged{suffix}"
+                            dst = src.with_name(f"{stem}.damaged{src.suffix}")
                             os.replace(src, dst)
                             res["moved"].append(dst.name)
-                elif not ok and key == "solution" and (folder / "solution.xdmf").exists():
-                    os.replace(folder / "solution.xdmf", folder / "solution.damaged.xdmf")
-                    res["moved"].append("solution.damaged.xdmf")
-                res[key] = ok
     err = comm.bcast(err, root=0)
     if err:
         raise CheckpointError(err)
     return comm.bcast(res, root=0)
 
 
+def _whole_rows(lines):
+    """The header and the rows with all its columns (a run killed while writing may leave a
+    partial last line)."""
+    if not lines:
+        return []
+    width = len(lines[0].split(","))
+    return lines[:1] + [ln for ln in lines[1:] if ln and len(ln.split(",")) == width]
+
+
 def truncate_csv(path, last_step, comm):
     """Keep the header and the rows of steps <= last_step (rank 0); returns those rows."""
     rows = None
     if comm.rank == 0:
-        lines = Path(path).read_text().splitlines()
-        keep = [lines[0]] + [ln for ln in lines[1:] if ln and int(ln.split(",", 1)[0]) <= last_step
-                             and len(ln.split(",")) == len(lines[0].split(","))]
+        lines = _whole_rows(Path(path).read_text().splitlines())
+        keep = lines[:1] + [ln for ln in lines[1:] if int(ln.split(",", 1)[0]) <= last_step]
         tmp = Path(str(path) + ".tmp")
         tmp.write_text("\n".join(keep) + "\n")
         os.replace(tmp, path)

@@ -27,7 +27,7 @@ from .disc_mesh import MeshError
 from .integrator import SCHEMES, StepError
 from .pairs import MASS_TREATMENTS, PAIRS, get_pair
 from .simulate import Interrupted, SolverSetupError, num_steps, simulate
-from .vi import LINEAR_STRATEGIES, VI_SOLVERS
+from .vi import LINEAR_STRATEGIES, VI_OPTIONS, VI_SOLVERS
 
 PROBLEMS = {"membrane": membrane, "disc": disc}
 #: commands that are not a run: name -> module with ``main(argv) -> exit status``
@@ -241,17 +241,12 @@ def _petsc_overrides(extra):
         opts.setValue("options_left", "")
 
 
-#: the step solver's own options (see vi._vi_tolerances): name -> (type, test, allowed values)
-VI_OPTIONS = {"-sdm_vi_rtol": (float, lambda v: 0 < v < 1, "a number in (0, 1)"),
-              "-sdm_vi_max_it": (int, lambda v: v >= 1, "an integer >= 1"),
-              "-sdm_vi_monitor": (str, lambda v: v.lower() in ("", "1", "0", "true", "false", "yes", "no"),
-                                  "true or false (or no value)")}
-
-
 def _check_vi_option(key, value):
-    if key not in VI_OPTIONS:
+    """The step solver's own -sdm_vi_* options, checked before anything runs (vi.VI_OPTIONS)."""
+    name = key[len("-sdm_"):]
+    if name not in VI_OPTIONS:
         return
-    kind, ok, allowed = VI_OPTIONS[key]
+    kind, ok, allowed = VI_OPTIONS[name]
     try:
         good = ok(kind(value if value is not None else ""))
     except ValueError:

@@ -198,4 +198,4 @@ def problem_from_args(args, comm):
     return Problem(level=args.level, h=args.h, radius=args.radius, height=args.height, rho=args.rho,
                    lame_lambda=args.lame_lambda, lame_mu=args.lame_mu, gravity=args.gravity, v0=args.v0,
                    contact_zone=args.contact_zone, with_contact=not args.no_contact, comm=comm,
-                   mesh_file=getattr(args, "mesh", None))
+                   mesh_file=args.mesh)

@@ -35,7 +35,6 @@ class MeshError(ValueError):
 def _build_model(gmsh, h, radius, centre, order, algorithm):
     """The disc in gmsh's current model: four quarter arcs (A is a vertex), physical groups
     1 (the surface), :data:`LOWER` and :data:`UPPER` (the half circles), meshed."""
-    gmsh.option.setNumber("General.Terminal", 0)
     gmsh.model.add("disc")
     cx, cy = centre
     geo = gmsh.model.geo
@@ -74,6 +73,7 @@ class _Gmsh:
         self.owner = not getattr(gmsh, "isInitialized", lambda: False)()
         if self.owner:
             gmsh.initialize()
+        gmsh.option.setNumber("General.Terminal", 0)
         return gmsh
 
     def __exit__(self, *exc):
@@ -116,18 +116,17 @@ def write_msh(path, h, radius=20.0, centre=(0.0, 30.0), order=2, algorithm=ALGOR
         gmsh.write(str(path))
 
 
-def _check_msh(path):
-    """None if ``path`` is a gmsh file with 2-D triangles (linear or quadratic), else why not."""
+def _open_msh(gmsh, path):
+    """Open ``path`` in gmsh; None if it holds 2-D triangles (linear or quadratic) in a
+    physical group, else why not."""
     from pathlib import Path
     path = Path(path)
     if not path.is_file():
         return f"{path}: no such file"
     try:
-        with _Gmsh() as gmsh:
-            gmsh.option.setNumber("General.Terminal", 0)
-            gmsh.open(str(path))
-            types = set(gmsh.model.mesh.getElementTypes(2)) if gmsh.model.getDimension() >= 2 else set()
-            groups = gmsh.model.getPhysicalGroups(2)
+        gmsh.open(str(path))
+        types = set(gmsh.model.mesh.getElementTypes(2)) if gmsh.model.getDimension() >= 2 else set()
+        groups = gmsh.model.getPhysicalGroups(2)
     except Exception as e:                      # gmsh raises a plain Exception
         return f"{path}: gmsh cannot read it ({str(e).strip() or type(e).__name__})"
     if not types or not types <= {2, 9}:        # 3-node and 6-node triangles
@@ -143,19 +142,19 @@ def read_mesh(path, radius, centre, comm=MPI.COMM_WORLD, rank=0):
     that any mesh of the disc works. Raises :class:`MeshError` (on every rank) when the
     file is missing or unreadable, or when its bounding box is not the disc of ``radius``
     centred at ``centre`` (1 % of the radius)."""
-    err = _check_msh(path) if comm.rank == rank else None
-    err = comm.bcast(err, root=rank)
-    if err:
-        raise MeshError(err)
     # gmsh opens the file on ``rank`` and dolfinx distributes the model, as for make_mesh
     # (dolfinx 0.5.2's own gmshio.read_from_msh fails: it returns an undefined name)
     if comm.rank == rank:
         with _Gmsh() as gmsh:
-            gmsh.option.setNumber("General.Terminal", 0)
-            gmsh.open(str(path))
-            msh = compat.model_to_mesh(gmsh.model, comm, rank, gdim=2)[0]
+            err = comm.bcast(_open_msh(gmsh, path), root=rank)
+            if err is None:
+                msh = compat.model_to_mesh(gmsh.model, comm, rank, gdim=2)[0]
     else:
-        msh = compat.model_to_mesh(None, comm, rank, gdim=2)[0]
+        err = comm.bcast(None, root=rank)
+        if err is None:
+            msh = compat.model_to_mesh(None, comm, rank, gdim=2)[0]
+    if err:
+        raise MeshError(err)
     x = msh.geometry.x
     lo, hi = np.empty(2), np.empty(2)
     comm.Allreduce(np.ascontiguousarray(x[:, :2].min(axis=0, initial=np.inf)), lo, op=MPI.MIN)

@@ -503,8 +503,6 @@ def curve_diff(a, b, col, scale):
     return float(np.max(np.abs(a[col][:len(t)] - np.interp(t, b.t, b[col]))) / scale)
 
 
-
-
 def l2_diff(a, b, col):
     """(∫|a − b|² dt / ∫|b|² dt)^½ on a's time grid (b interpolated)."""
     t = a.t[a.t <= b.t[-1] + 1e-12]

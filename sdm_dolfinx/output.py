@@ -234,6 +234,3 @@ class XDMFWriter:
         with compat.xdmf_file(self.comm, self.path, "a") as file:
             for f in (self.u1, self.v1, self.s1, self.a1):
                 file.write_function(f, float(t))
-
-    def close(self):
-        """Nothing stays open between writes (kept for the writers' common interface)."""

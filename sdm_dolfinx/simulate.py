@@ -211,12 +211,9 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
                             last_step=first)
         write_every = write_every or 10
 
-    written = [first]                   # the last step whose fields are in the files
-
     def write_fields(n):
         xdmf.write(U, V, lam, lam > 0, n * dt)
         state.write(U, V, n, n * dt)
-        written[0] = n
     scale = max(comm.allreduce(float(np.max(np.abs(disc.lb), initial=0.0)), op=MPI.MAX), 1.0)
     stop = _StopFlag(handle_signals)
 
@@ -243,7 +240,7 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
         meta = {"identity": identity, "step": n, "t": n * dt, "run_id": run_id}
         checkpoint.save(out, comm, fields, disc.cx[:, integ.solver.active].T, meta)
 
-    good, n = None, first
+    saved, n = None, first
     try:
         if not restart:
             record(0, 0.0, 0, 0)
@@ -253,12 +250,12 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
             state.write(U, V, first, first * dt)     # a new state.h5 starts at the checkpoint
         last_print = time.perf_counter()
         # the state before each step, so that a failed run's files end with its last good step
-        good = (U.array.copy(), V.array.copy(), lam) if xdmf is not None else None
+        saved = (U.array.copy(), V.array.copy()) if xdmf is not None else None
         for n in range(first, nsteps):
             t = n * dt
-            if good is not None:
-                good[0][:], good[1][:] = U.array, V.array
-                good = (good[0], good[1], lam)
+            if saved is not None:
+                saved[0][:], saved[1][:] = U.array, V.array
+                saved_lam = lam
             info_step = integ.step(U, V, n, t)
             lam = integ.lam.copy()
             gap_imposed[n], gap_end[n] = info_step["gap_imposed"], info_step["gap_end"]
@@ -291,8 +288,10 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
     except StepError as e:
         info.update(status="failed", error=str(e), wall_time=time.perf_counter() - wall0)
         if out is not None:
-            if good is not None and n > written[0]:       # step n was the last good one
-                U.array[:], V.array[:], lam = good
+            # step n was the last good one; its fields are written unless they already are
+            if saved is not None and n > first and n % write_every:
+                U.array[:], V.array[:] = saved
+                lam = saved_lam
                 write_fields(n)
             info["last_good_step"] = n
             write_json(out / "run.json", info, comm)
@@ -301,8 +300,6 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
         stop.restore()
         if writer is not None:
             writer.close()
-        if xdmf is not None:
-            xdmf.close()
     info.update(status="finished", wall_time=time.perf_counter() - wall0, setup_time=setup_time,
                 newton_its_total=int(series["newton_its"].sum()),
                 linear_its_total=int(integ.solver.total_linear_its),

@@ -388,6 +388,14 @@ def choose_strategy(num_constraints, spd):
     return "schur" if num_constraints <= SCHUR_MAX_CONSTRAINTS or not spd else "amg"
 
 
+#: the VI solvers' own options (after the prefix): name -> (parse, valid, what is allowed);
+#: :func:`_vi_tolerances` and the command line (``cli._petsc_overrides``) check them with these
+VI_OPTIONS = {"vi_rtol": (float, lambda v: 0 < v < 1, "a number in (0, 1)"),
+              "vi_max_it": (int, lambda v: v >= 1, "an integer >= 1"),
+              "vi_monitor": (str, lambda v: v.lower() in ("", "1", "0", "true", "false", "yes", "no"),
+                             "true or false (or no value)")}
+
+
 def _vi_tolerances(prefix, rtol, max_it, options=None):
     """The step solver's own settings, overridable as PETSc options for either VI solver:
     ``-<prefix>vi_rtol`` (complementarity tolerance relative to max|b|),
@@ -399,8 +407,10 @@ def _vi_tolerances(prefix, rtol, max_it, options=None):
         rtol = opts.getReal(prefix + "vi_rtol", rtol)
         max_it = opts.getInt(prefix + "vi_max_it", max_it)
         monitor = opts.getBool(prefix + "vi_monitor", False)
-    if not (0 < rtol < 1) or max_it < 1:
-        raise VIError(f"-{prefix}vi_rtol must be in (0, 1) and -{prefix}vi_max_it >= 1 (got {rtol}, {max_it})")
+    for name, value in (("vi_rtol", rtol), ("vi_max_it", max_it)):
+        _, valid, allowed = VI_OPTIONS[name]
+        if not valid(value):
+            raise VIError(f"-{prefix}{name}: {value!r} is not {allowed}")
     return rtol, max_it, monitor
 
 
@@ -678,8 +688,10 @@ class SemismoothNewton:
             raise self._error
         return self._result
 
-    def newton(self, b, x, snes=None):
-        """Solve the LCP for right-hand side b; x holds the initial guess and the result.
+    def newton(self, b, x, snes):
+        """Solve the LCP for right-hand side b; x holds the initial guess and the result
+        (called by the SNES of :meth:`_make_snes`, which ``snes`` is: it gets the
+        iteration number, the residual norm and the monitor calls).
 
         Each iteration exchanges the infeasible constraints between the active and the
         inactive set (active with lam < 0: release; inactive with x < lb: add), which is the
@@ -707,8 +719,6 @@ class SemismoothNewton:
         gidx = self.K.getOwnershipRange()[0] + c           # global indices, for Murty's rule
         best, patience = np.inf, 3
         for it in range(1, self.max_it + 1):
-            if snes is not None:
-                snes.setIterationNumber(it - 1)
             # Newton step: x_A = lb_A, K_II x_I = b_I - K_IA lb_A
             by_schur = schur and self._schur_system(active)
             if by_schur:
@@ -721,12 +731,12 @@ class SemismoothNewton:
             infeasible = np.where(active, lam < -tol_lam, xc < lb - tol_x)
             n_inf = self.comm.allreduce(int(np.count_nonzero(infeasible)), op=MPI.SUM)
             self.lam, self.active = lam, active
-            if snes is not None:        # the Alart–Curnier residual |lam - max(0, lam - r (x - lb))|
-                res = np.where(active, np.minimum(lam, 0.0), self.r * np.minimum(xc - lb, 0.0))
-                fnorm = float(np.sqrt(self.comm.allreduce(float(res @ res), op=MPI.SUM)))
-                snes.setIterationNumber(it)
-                snes.setFunctionNorm(fnorm)
-                snes.monitor(it, fnorm)
+            # the Alart–Curnier residual |lam - max(0, lam - r (x - lb))|, for SNES monitors
+            res = np.where(active, np.minimum(lam, 0.0), self.r * np.minimum(xc - lb, 0.0))
+            fnorm = float(np.sqrt(self.comm.allreduce(float(res @ res), op=MPI.SUM)))
+            snes.setIterationNumber(it)
+            snes.setFunctionNorm(fnorm)
+            snes.monitor(it, fnorm)
             if self.monitor:
                 n_act = self.comm.allreduce(int(np.count_nonzero(active)), op=MPI.SUM)
                 if self.comm.rank == 0:
