@@ -1,9 +1,11 @@
 """# A problem of your own: an elastic bar hitting a rigid wall
 
-This demo defines a problem that is not in the paper, without touching the package: a
-:class:`sdm_dolfinx.problem.Problem` is plain data (a mesh, the forms a and l, initial
-state, the constrained vertices and their bounds), built here in about forty lines, and
-``sdm_dolfinx.simulate`` runs it like the membrane or the disc.
+This demo runs a problem that is not in the paper, without touching the package: the
+problem file ``demos/bar_problem.py`` declares it (a :class:`sdm_dolfinx.problems.Problem`
+is plain data: a mesh, the forms a and l, initial state, the constrained vertices and their
+bounds, built in about forty lines, plus its parameters declared once), and
+``sdm_dolfinx.run.launch`` runs it like the membrane or the disc; so does the command line,
+``python -m sdm_dolfinx run --problem-file demos/bar_problem.py``.
 
 The problem: a straight elastic bar, length L and height H, moves with velocity v toward
 a rigid wall at x = 0, which its left end face reaches after the gap d (t_0 = d / v).
@@ -46,73 +48,19 @@ import argparse
 from pathlib import Path
 
 from mpi4py import MPI
-from petsc4py import PETSc
 
 import numpy as np
-import ufl
-from dolfinx import fem, mesh as dmesh
 
-from sdm_dolfinx import simulate
-from sdm_dolfinx.problem import Problem
+from sdm_dolfinx import problems
+from sdm_dolfinx.run import launch
 
-#: the steel bar (mm, N, s, tonne)
-DEFAULTS = {"L": 100.0, "H": 10.0, "E": 2.0e5, "rho": 7.85e-9, "v": 1000.0}
+#: the problem file that declares the bar (its parameters, build function and run defaults)
+PROBLEM_FILE = Path(__file__).resolve().with_name("bar_problem.py")
 
 
-def sigma(u, lame_mu):
-    """Hooke's law with Lamé lambda = 0 (Poisson's ratio 0): sigma = 2 mu eps(u)."""
-    return 2.0 * lame_mu * ufl.sym(ufl.grad(u))
-
-
-def bar_problem(L=DEFAULTS["L"], H=DEFAULTS["H"], E=DEFAULTS["E"], rho=DEFAULTS["rho"], v=DEFAULTS["v"],
-                Nx=40, Ny=4, gap_time=None, comm=MPI.COMM_WORLD):
-    """The bar [d, d + L] x [0, H] moving at velocity -v toward the wall x = 0.
-
-    Args:
-        L, H: length and height of the bar (mm).
-        E: Young's modulus (N/mm^2); Poisson's ratio is 0, so lame_mu = E / 2, lame_lambda = 0.
-        rho: density (t/mm^3).
-        v: speed toward the wall (mm/s, > 0).
-        Nx, Ny: cells along and across the bar (each split into two triangles).
-        gap_time: time at which the end face reaches the wall (s); the gap is d = v gap_time.
-            Default: a tenth of the contact duration 2L/c.
-        comm: the communicator the mesh lives on.
-    """
-    c = np.sqrt(E / rho)
-    t0 = 0.1 * 2.0 * L / c if gap_time is None else gap_time
-    d = v * t0
-    msh = dmesh.create_rectangle(comm, [np.array([d, 0.0]), np.array([d + L, H])], [Nx, Ny],
-                                 dmesh.CellType.triangle)
-    fdim = msh.topology.dim - 1
-
-    def on_end_face(x):
-        return np.isclose(x[0], d, rtol=0.0, atol=1e-9 * L)
-
-    # the end face x = d, tagged 1: the contact stress at a vertex is its nodal multiplier
-    # divided by its share of the face's length (the integral of its hat function on the face)
-    facets = np.sort(dmesh.locate_entities_boundary(msh, fdim, on_end_face)).astype(np.int32)
-    tags = dmesh.meshtags(msh, fdim, facets, np.full(len(facets), 1, dtype=np.int32))
-    ds_end = ufl.Measure("ds", domain=msh, subdomain_data=tags)(1)
-    zero = fem.Constant(msh, PETSc.ScalarType((0.0, 0.0)))
-    lame_mu = E / 2.0
-
-    return Problem(
-        name="bar", mesh=msh, shape=(2,), rho=rho,
-        a=lambda u, w: ufl.inner(sigma(u, lame_mu), ufl.sym(ufl.grad(w))) * ufl.dx,
-        l=lambda w: ufl.inner(zero, w) * ufl.dx,                  # no body force
-        u0=lambda x: np.zeros((2, x.shape[1])),
-        v0=lambda x: np.vstack([np.full(x.shape[1], -v), np.zeros(x.shape[1])]),
-        constraint_vertices=lambda m: dmesh.locate_entities_boundary(m, 0, on_end_face),
-        lower_bound=lambda x: -x[0],                               # x + u_x >= 0: the wall x = 0
-        constraint_component=0,
-        constraint_measure=lambda q: q * ds_end,
-        probe=(d, H / 2.0),                                        # the middle of the end face
-        extra_columns=("contact_force",),
-        parameters={"L": L, "H": H, "E": E, "nu": 0.0, "lame_lambda": 0.0, "lame_mu": lame_mu, "rho": rho,
-                    "v": v, "gap": d, "gap_time": t0, "Nx": Nx, "Ny": Ny, "c": c},
-        units={"L": "mm", "H": "mm", "E": "N/mm^2", "rho": "t/mm^3", "v": "mm/s", "gap": "mm", "t": "s",
-               "lambda_probe": "N/mm^2 (>= 0 compressive)", "contact_force": "N per mm of thickness"},
-    )
+def bar_problem(comm=MPI.COMM_WORLD, **values):
+    """The bar of ``bar_problem.py`` for these parameter values (L, H, E, rho, v, Nx, Ny, gap_time)."""
+    return problems.load_file(PROBLEM_FILE).problem(comm, **values)
 
 
 def closed_form(problem):
@@ -152,13 +100,14 @@ def run(pair="P2/P1", Nx=40, Ny=4, cfl=0.5, after=0.5, out=None, write_every=Non
         cfl: dt = cfl h / c with h = L / Nx.
         after: run until t0 + (1 + after) 2L/c.
         out: output folder (CSV, run.json, XDMF) or None.
-        **kw: passed to :func:`bar_problem` (L, H, E, rho, v, gap_time).
+        **kw: the bar's other parameters (L, H, E, rho, v, gap_time).
     """
-    problem = bar_problem(Nx=Nx, Ny=Ny, comm=comm, **kw)
+    problem = bar_problem(comm, Nx=Nx, Ny=Ny, **kw)      # for its closed form
     exact = closed_form(problem)
     dt = cfl * problem.parameters["L"] / Nx / exact["c"]
     T = exact["t0"] + (1.0 + after) * exact["duration"]
-    result = simulate(problem, pair=pair, scheme="midpoint", dt=dt, T=T, out=out, write_every=write_every)
+    result = launch(PROBLEM_FILE, {"Nx": Nx, "Ny": Ny, **kw}, out=out, overwrite=True, comm=comm, pair=pair,
+                    scheme="midpoint", dt=dt, T=T, write_every=write_every)
     return problem, result
 
 
@@ -199,7 +148,7 @@ def plot_wave(out, problem, png):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from sdm_dolfinx.render import read_xdmf
+    from sdm_dolfinx.post.render import read_xdmf
     p, ex = problem.parameters, closed_form(problem)
     series = read_xdmf(out)
     x, y = series.points[:, 0], series.points[:, 1]

@@ -20,7 +20,7 @@ both with the midpoint scheme and contact at the boundary vertices, at dt = 1e-4
 * ``disc_stress.png`` and ``disc_impact.gif``: the same moment and an animation of the
   impact (every third step of dt = 1e-4 s around the contact), rendered off-screen with
   pyvista when it is installed (else matplotlib) from the run's files in
-  ``disc_P2-P1_dt0.0001/`` (see ``sdm_dolfinx/render.py``).
+  ``disc_P2-P1_dt0.0001/`` (see ``sdm_dolfinx/post/render.py``).
 
 With the ``CI`` variable set the runs stop at t = 14 ms (after the impact's peak).
 Run with ``python demos/disc.py [--level 1] [--out DIR]``; ``mpirun -n 2`` works too.
@@ -35,7 +35,8 @@ import numpy as np
 import ufl
 from dolfinx import fem
 
-from sdm_dolfinx import compat, disc, render, simulate
+from sdm_dolfinx import compat, disc, simulate
+from sdm_dolfinx.post import render
 
 COMM = MPI.COMM_WORLD
 PAIRS = ("P2/P2", "P2/P1")
@@ -47,7 +48,7 @@ def run_all(level=1, T=0.02, dts=DTS, pairs=PAIRS):
     out = {}
     for pair in pairs:
         for dt in dts:
-            r = simulate(disc.Problem(level=level), pair=pair, scheme="midpoint", dt=dt, T=T)
+            r = simulate(disc.problem(level=level), pair=pair, scheme="midpoint", dt=dt, T=T)
             out[pair, dt] = r.timeseries
             E = r.timeseries["energy"]
             if COMM.rank == 0:
@@ -90,9 +91,9 @@ def cell_data(discretisation, U=None):
 
 def compression_state(level, pair, dt, T):
     """The state at the step of largest total contact force: (t, cell data on rank 0)."""
-    ts = simulate(disc.Problem(level=level), pair=pair, dt=dt, T=T).timeseries
+    ts = simulate(disc.problem(level=level), pair=pair, dt=dt, T=T).timeseries
     n = int(np.argmax(ts["contact_force"]))
-    r = simulate(disc.Problem(level=level), pair=pair, dt=dt, T=n * dt)
+    r = simulate(disc.problem(level=level), pair=pair, dt=dt, T=n * dt)
     return n * dt, ts["contact_force"][n], cell_data(r.discretisation, r.U)
 
 
@@ -100,7 +101,7 @@ def impact_pictures(level, T, out, dt=1e-4):
     """Run P2/P1 with fields written every step, then (rank 0) a picture at maximal compression
     and a GIF of the impact, from one time step before the first contact to one after the last."""
     folder = Path(out) / f"disc_P2-P1_dt{dt:g}"
-    r = simulate(disc.Problem(level=level), pair="P2/P1", scheme="midpoint", dt=dt, T=T, out=folder,
+    r = simulate(disc.problem(level=level), pair="P2/P1", scheme="midpoint", dt=dt, T=T, out=folder,
                  write_every=1)
     if COMM.rank != 0:
         return None
@@ -164,8 +165,8 @@ if __name__ == "__main__":
         print(f"wrote {path}")
 
     # -- Figure 13: the mesh ------------------------------------------------------------
-    from sdm_dolfinx.discretisation import Discretisation
-    mesh_data = cell_data(Discretisation(disc.Problem(level=args.level), "P2/P1"))
+    from sdm_dolfinx.method.discretisation import Discretisation
+    mesh_data = cell_data(Discretisation(disc.problem(level=args.level), "P2/P1"))
     if COMM.rank == 0:
         xy = mesh_data["xy"]
         fig, ax = plt.subplots(figsize=(5.5, 6))

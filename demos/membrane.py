@@ -3,13 +3,14 @@
 A membrane, pre-stretched at height 0.02 and pulled down by f = -0.6, falls onto the
 obstacle u >= 0, bounces and falls again. For each pair P1+/P0, P1/P0, P1/P1, P1+/P1 and
 P2/P1 this demo runs the midpoint scheme on the paper's mesh (h = 0.1) with dt = 1e-2 and
-1e-3, through the command line (so every run leaves its ``timeseries.csv``, ``run.json``
-and ``solution.xdmf``), and plots from those files the energy, the displacement at the
+1e-3, through ``sdm_dolfinx.run.launch`` with an output folder (so every run leaves its
+``timeseries.csv``, ``run.json`` and ``solution.xdmf``, as the command line does), and plots
+from those files the energy, the displacement at the
 centre and the contact stress at the centre, one PNG per pair. Well-posed pairs (P1+/P0,
 P1+/P1, P2/P1) conserve energy as dt decreases; the others blow up after the first impact.
 It also renders ``membrane_3d.png``: the P1+/P0 membrane (dt = 1e-3) lying on the obstacle
 at t = 0.3, warped by its displacement over the obstacle plane (pyvista off-screen when
-installed, else matplotlib; see ``sdm_dolfinx/render.py``).
+installed, else matplotlib; see ``sdm_dolfinx/post/render.py``).
 
 Run: ``python demos/membrane.py [--out DIR] [--T 0.8]`` (or ``mpirun -n 2 python ...``).
 With the ``CI`` environment variable set, the runs stop at T = 0.5.
@@ -23,7 +24,7 @@ from mpi4py import MPI
 
 import numpy as np
 
-from sdm_dolfinx import cli
+from sdm_dolfinx.run import launch
 
 PAIRS = ["P1+/P0", "P1/P0", "P1/P1", "P1+/P1", "P2/P1"]
 TIME_STEPS = [1e-2, 1e-3]
@@ -34,15 +35,12 @@ def run_dir(out, pair, dt):
 
 
 def run_all(out, T, N=10):
-    """Run every (pair, dt) through the command line; returns {(pair, dt): folder}."""
+    """Run every (pair, dt) into its own folder; returns {(pair, dt): folder}."""
     folders = {}
     for pair in PAIRS:
         for dt in TIME_STEPS:
             d = run_dir(out, pair, dt)
-            status = cli.main(["membrane", "--pair", pair, "--dt", str(dt), "--T", str(T), "--N", str(N),
-                               "--out", str(d), "--overwrite", "--quiet", "--write-every", "50"])
-            if status != 0:
-                raise SystemExit(f"run {pair} dt={dt} failed (status {status})")
+            launch("membrane", {"N": N}, out=d, overwrite=True, pair=pair, dt=dt, T=T, write_every=50)
             folders[(pair, dt)] = d
     return folders
 
@@ -82,7 +80,7 @@ def plot_pair(pair, folders, out):
 
 def picture_3d(folder, out, time=0.3):
     """The membrane on the obstacle at ``time``, warped over the obstacle plane (rank 0 only)."""
-    from sdm_dolfinx import render
+    from sdm_dolfinx.post import render
     png = Path(out) / "membrane_3d.png"
     how = render.picture(folder, png, time=time)
     return png, how

@@ -35,7 +35,7 @@ def commands():
     """The commands, read from sdm_dolfinx.cli without running anything."""
     sys.path.insert(0, str(ROOT))
     from sdm_dolfinx import cli
-    return list(cli.PROBLEMS), list(cli.SUBCOMMANDS)
+    return cli.commands(), []
 
 
 def help_text(args):

@@ -2,9 +2,15 @@
 
 Quick use::
 
-    from sdm_dolfinx import membrane, simulate
-    result = simulate(membrane.Problem(N=10), pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8)
+    from sdm_dolfinx import simulate
+    from sdm_dolfinx.problems import membrane
+    result = simulate(membrane.problem(N=10), pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8)
     result.timeseries["energy"]
+
+The package's folders are its layers (docs/architecture.md): ``problems`` (what is solved),
+``method`` (pairs, discretisation, time schemes), ``solvers`` (the step's variational
+inequality), ``run`` (the time loop and its files), ``post`` (reading runs back), ``paper``
+(the paper's study) and ``cli`` (the command line).
 """
 import logging
 
@@ -15,14 +21,14 @@ import ffcx  # noqa: F401  (its logging.basicConfig creates the root handler)
 for _h in logging.getLogger().handlers:
     _h.setLevel(logging.WARNING)
 
-from . import membrane  # noqa: E402
-from .discretisation import Discretisation  # noqa: E402
-from .integrator import SCHEMES, Integrator, StepError  # noqa: E402
-from .pairs import MASS_TREATMENTS, PAIRS, Pair, get_pair  # noqa: E402
-from .problem import Problem  # noqa: E402
-from .simulate import Result, simulate  # noqa: E402
-from .vi import VIError  # noqa: E402
+from sdm_dolfinx.problems import disc, membrane  # noqa: E402
+from sdm_dolfinx.problems.base import Problem  # noqa: E402
+from sdm_dolfinx.method.discretisation import Discretisation  # noqa: E402
+from sdm_dolfinx.method.integrator import SCHEMES, Integrator, StepError  # noqa: E402
+from sdm_dolfinx.method.pairs import MASS_TREATMENTS, PAIRS, Pair, get_pair  # noqa: E402
+from sdm_dolfinx.run import Result, launch, simulate  # noqa: E402
+from sdm_dolfinx.solvers import VIError  # noqa: E402
 
-__all__ = ["membrane", "Discretisation", "Integrator", "SCHEMES", "StepError", "PAIRS", "Pair", "get_pair",
-           "MASS_TREATMENTS", "Problem", "Result", "simulate", "VIError"]
+__all__ = ["membrane", "disc", "Discretisation", "Integrator", "SCHEMES", "StepError", "PAIRS", "Pair",
+           "get_pair", "MASS_TREATMENTS", "Problem", "Result", "simulate", "launch", "VIError"]
 __version__ = "0.1.0"

@@ -1,3 +1,3 @@
-from .cli import main
+from sdm_dolfinx.cli import main
 
 raise SystemExit(main())

@@ -3,6 +3,8 @@
 Only this module may look at ``dolfinx.__version__``; the rest of the package calls
 these helpers, so a port to a new dolfinx touches this file alone.
 """
+import ctypes
+
 from mpi4py import MPI
 from petsc4py import PETSc
 
@@ -264,32 +266,31 @@ def cell_candidates(tree, points):
 
 
 def interpolate_nonmatching(u_to, u_from, padding=1e-8):
-    """Interpolate ``u_from`` into ``u_to``'s space when the two live on different meshes
-    (same communicator, any partitions); points up to ``padding`` outside the source mesh
-    are extrapolated from the nearest cell.
+    """Interpolate ``u_from`` into ``u_to``'s space with dolfinx's own non-matching mesh
+    interpolation (same communicator, any partitions; points up to ``padding`` outside the
+    source mesh are extrapolated from the nearest cell).
 
-    dolfinx 0.5 cannot (``Function.interpolate`` wants the same mesh): point evaluation
-    distributed over the ranks, :func:`sdm_dolfinx.postprocess.interpolate_by_points`.
+    Returns True when it interpolated, False when this dolfinx has none (0.5: the caller
+    falls back to point evaluation, :func:`sdm_dolfinx.post.interpolate_nonmatching`).
     dolfinx 0.7-0.8: ``create_nonmatching_meshes_interpolation_data`` and
     ``interpolate(..., nmm_interpolation_data=)``; >= 0.9: ``create_interpolation_data``
     and ``Function.interpolate_nonmatching``.
     """
-    if NEW_API:  # pragma: no cover
-        V_to, V_from = u_to.function_space, u_from.function_space
-        tdim = V_to.mesh.topology.dim
-        imap = V_to.mesh.topology.index_map(tdim)
-        cells = np.arange(imap.size_local + imap.num_ghosts, dtype=np.int32)
-        if hasattr(fem, "create_interpolation_data"):
-            data = fem.create_interpolation_data(V_to, V_from, cells, padding=padding)
-            u_to.interpolate_nonmatching(u_from, cells, data)
-        else:
-            data = fem.create_nonmatching_meshes_interpolation_data(
-                V_to.mesh._cpp_object, V_to.element, V_from.mesh._cpp_object, padding=padding)
-            u_to.interpolate(u_from, nmm_interpolation_data=data)
-        u_to.x.scatter_forward()
-        return {}
-    from .postprocess import interpolate_by_points
-    return interpolate_by_points(u_to, u_from, padding)
+    if not NEW_API:
+        return False
+    V_to, V_from = u_to.function_space, u_from.function_space  # pragma: no cover - dolfinx >= 0.7
+    tdim = V_to.mesh.topology.dim
+    imap = V_to.mesh.topology.index_map(tdim)
+    cells = np.arange(imap.size_local + imap.num_ghosts, dtype=np.int32)
+    if hasattr(fem, "create_interpolation_data"):
+        data = fem.create_interpolation_data(V_to, V_from, cells, padding=padding)
+        u_to.interpolate_nonmatching(u_from, cells, data)
+    else:
+        data = fem.create_nonmatching_meshes_interpolation_data(
+            V_to.mesh._cpp_object, V_to.element, V_from.mesh._cpp_object, padding=padding)
+        u_to.interpolate(u_from, nmm_interpolation_data=data)
+    u_to.x.scatter_forward()
+    return True
 
 
 def vtk_mesh(V):
@@ -299,3 +300,26 @@ def vtk_mesh(V):
     if hasattr(plot, "vtk_mesh"):  # pragma: no cover
         return plot.vtk_mesh(V)
     return plot.create_vtk_mesh(V)
+
+
+_options_used = []      # [PetscOptionsUsed wrapper or None], found on first use
+
+
+def petsc_options_used(name):
+    """Whether PETSc has read the option ``name`` (no dash); None where that cannot be asked.
+
+    petsc4py (3.18 at least) does not wrap PetscOptionsUsed: it is called through ctypes in
+    libpetsc, which petsc4py's extension links."""
+    if not _options_used:
+        try:
+            f = ctypes.CDLL(PETSc.__file__).PetscOptionsUsed
+            f.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.POINTER(ctypes.c_int)]
+            f.restype = ctypes.c_int
+        except (OSError, AttributeError):
+            f = None
+        _options_used.append(f)
+    f = _options_used[0]
+    if f is None:
+        return None
+    flag = ctypes.c_int(0)
+    return f(None, name.encode(), ctypes.byref(flag)) == 0 and bool(flag.value)

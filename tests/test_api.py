@@ -38,7 +38,7 @@ def clean_env():
 # ------------------------------------------------------------------------------------------ the API
 def test_readme_api_example():
     """The README's few lines (shortened to T = 0.3, dt = 1e-2), and pairs given as Pair objects."""
-    problem = membrane.Problem(N=8)
+    problem = membrane.problem(N=8)
     result = simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-2, T=0.3)
     ts = result.timeseries
     assert result.info["steps"] == 30 and len(ts["energy"]) == 31
@@ -50,11 +50,11 @@ def test_readme_api_example():
     again = simulate(problem, pair=PAIRS["P1+/P0"], scheme="midpoint", dt=1e-2, T=0.3)
     assert np.array_equal(again.timeseries["energy"], ts["energy"])
     # a pair of one's own (not registered): P2 displacement, P0 velocity
-    own = simulate(membrane.Problem(N=4), pair=Pair("P2/P0", ("P", 2), ("P", 0), "untested"), dt=1e-2, T=0.05)
+    own = simulate(membrane.problem(N=4), pair=Pair("P2/P0", ("P", 2), ("P", 0), "untested"), dt=1e-2, T=0.05)
     assert own.info["pair"] == "P2/P0" and own.info["dim_H"] == 2 * 4 * 4
     # every scheme by name; Result helpers
     for scheme in SCHEMES:
-        r = simulate(membrane.Problem(N=4, with_obstacle=False), pair="P2/P1", scheme=scheme, dt=1e-2, T=0.05)
+        r = simulate(membrane.problem(N=4, with_obstacle=False), pair="P2/P1", scheme=scheme, dt=1e-2, T=0.05)
         assert r.info["scheme"] == scheme
     assert r.max_energy_deviation() < 1.0
     u = result.displacement()
@@ -66,9 +66,9 @@ def test_readme_api_example():
 
 def test_unknown_names_are_refused():
     with pytest.raises(ValueError, match="unknown pair"):
-        simulate(membrane.Problem(N=2), pair="P3/P1", dt=1e-2, T=0.02)
+        simulate(membrane.problem(N=2), pair="P3/P1", dt=1e-2, T=0.02)
     with pytest.raises(ValueError, match="unknown scheme"):
-        simulate(membrane.Problem(N=2), scheme="leapfrog", dt=1e-2, T=0.02)
+        simulate(membrane.problem(N=2), scheme="leapfrog", dt=1e-2, T=0.02)
 
 
 # ---------------------------------------------------------------------- a problem not in the paper
@@ -148,7 +148,7 @@ def _help_of(argv):
     return status, out.getvalue(), printed
 
 
-@pytest.mark.parametrize("command", [None] + list(cli.PROBLEMS) + list(cli.SUBCOMMANDS))
+@pytest.mark.parametrize("command", [None] + cli.commands())
 def test_help_lists_every_option(command):
     """``--help`` of the program and of every command exits 0 and lists each option (checked on rank 0,
     which is the rank that prints; the verdict is shared so that all ranks pass or fail together)."""
@@ -169,7 +169,7 @@ def test_help_lists_every_option(command):
             elif missing:
                 problem = f"{' '.join(argv)} does not list {missing}"
             elif command is None:
-                absent = [name for name in cli.PROBLEMS if name not in help_text]
+                absent = [name for name in cli.commands() if name not in help_text]
                 problem = f"--help does not name the commands {absent}" if absent else None
     problem = COMM.bcast(problem, root=0)
     assert problem is None, problem
@@ -196,7 +196,7 @@ def test_top_level_help_names_every_command():
     if COMM.rank == 0:
         help_text = printed[-1][1]
         lines = {line.split()[0]: line for line in help_text.splitlines() if line.startswith("    ")}
-        absent = [name for name in list(cli.PROBLEMS) + list(cli.SUBCOMMANDS)
+        absent = [name for name in cli.commands()
                   if name not in lines or len(lines[name].split()) < 3]
         problem = f"--help does not name (with a description) {absent}" if absent else None
     problem = COMM.bcast(problem, root=0)

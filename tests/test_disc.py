@@ -13,10 +13,11 @@ from mpi4py import MPI
 import numpy as np
 import pytest
 
-from sdm_dolfinx import disc, disc_mesh, simulate
+from sdm_dolfinx import disc, simulate
+from sdm_dolfinx.problems import disc_mesh
 from sdm_dolfinx.cli import main as cli_main
-from sdm_dolfinx.discretisation import Discretisation
-from sdm_dolfinx.integrator import Integrator
+from sdm_dolfinx.method.discretisation import Discretisation
+from sdm_dolfinx.method.integrator import Integrator
 
 COMM = MPI.COMM_WORLD
 R, HEIGHT, V0, G = 20.0, 10.0, -1000.0, 9810.0       # the defaults (mm, mm, mm/s, mm/s^2)
@@ -24,7 +25,7 @@ MASS = 1e-6 * np.pi * R ** 2                         # rho |disc| (t per mm of t
 #: the semi-smooth Newton accepts an inactive vertex within rtol = 1e-10 of the right-hand
 #: side's scale, i.e. ~1e-10 x the coordinates (<= 30 mm): 1e-9 x 30 mm leaves a factor 10
 GAP_TOL = 1e-9 * (R + HEIGHT)
-#: relative tolerance of every linear solve of a step (vi.SemismoothNewton's ksp_rtol)
+#: relative tolerance of every linear solve of a step (solvers.active_set.InactiveSetSolver's ksp rtol)
 KSP_RTOL = 1e-12
 
 _RUNS = {}
@@ -34,7 +35,7 @@ def run(pair="P2/P1", dt=1e-4, T=0.02, scheme="midpoint", **problem_args):
     """A level-1 run, cached: only the time series and scalars are kept (no PETSc objects)."""
     key = (pair, dt, T, scheme, tuple(sorted(problem_args.items())))
     if key not in _RUNS:
-        r = simulate(disc.Problem(level=1, **problem_args), pair=pair, scheme=scheme, dt=dt, T=T)
+        r = simulate(disc.problem(level=1, **problem_args), pair=pair, scheme=scheme, dt=dt, T=T)
         _RUNS[key] = {"ts": r.timeseries, "info": r.info, "gap_imposed": r.gap_imposed.copy()}
     return _RUNS[key]
 
@@ -59,7 +60,7 @@ def test_mesh_levels_and_curved_boundary():
         msh, _ = disc_mesh.make_mesh(disc_mesh.LEVELS[level], centre=(0.0, R + HEIGHT))
         n = disc_mesh.p2_dofs(msh)
         assert abs(n - disc_mesh.PAPER_DOFS[level]) <= tol * disc_mesh.PAPER_DOFS[level], (level, n)
-    p = disc.Problem(level=1)
+    p = disc.problem(level=1)
     assert abs(disc.total_mass(p) - MASS) < 1e-4 * MASS
     d = Discretisation(p, "P2/P1")
     # the contact vertices are the boundary vertices of the lower half, A among them
@@ -83,7 +84,7 @@ def test_free_flight(pair):
     that cancel: we ask 1e-11 relative (~5e4 eps) for the energy, 1e-10 for the motion.
     """
     dt, T = 1e-4, 0.005
-    p = disc.Problem(level=1, with_contact=False)
+    p = disc.problem(level=1, with_contact=False)
     r = simulate(p, pair=pair, dt=dt, T=T)
     ts = r.timeseries
     E = ts["energy"]
@@ -106,7 +107,7 @@ def test_without_gravity_the_disc_moves_uniformly():
     moves at V0, so the momentum m V0 and the energy m V0^2 / 2 stay constant (round-off:
     1e-11 relative, as in free flight) and U = V0 t exactly."""
     dt, T = 1e-4, 0.005
-    p = disc.Problem(level=1, with_contact=False, gravity=0.0)
+    p = disc.problem(level=1, with_contact=False, gravity=0.0)
     r = simulate(p, pair="P2/P1", dt=dt, T=T)
     ts, m = r.timeseries, disc.total_mass(p)
     np.testing.assert_allclose(ts["energy"], 0.5 * m * V0 ** 2, rtol=1e-11)
@@ -131,7 +132,7 @@ def test_impulse_momentum_balance(pair, scheme):
     assert ts["n_active"].max() >= 1                      # there was an impact
     n = len(ts["t"]) - 1
     impulse = dt * np.sum(ts["contact_force"][1:])
-    m = disc.total_mass(disc.Problem(level=1))           # e^T M e: the mesh's mass, not rho pi R^2
+    m = disc.total_mass(disc.problem(level=1))           # e^T M e: the mesh's mass, not rho pi R^2
     residual = impulse - (ts["momentum_y"][-1] - ts["momentum_y"][0]) - m * G * n * dt
     assert abs(residual) < n * KSP_RTOL * m * (abs(V0) + G * T), residual
 
@@ -200,7 +201,7 @@ def test_rebound_is_physical():
     then decelerates at g again.
     """
     dt, T = 1e-4, 0.02
-    p = disc.Problem(level=1)
+    p = disc.problem(level=1)
     d = Discretisation(p, "P2/P1")
     integ = Integrator(d, "midpoint", dt)
     U, V = d.initial_state()
@@ -254,10 +255,10 @@ def test_one_and_two_ranks_agree():
     of each column's scale. T = 13 ms covers free flight and the peak of the impact.
     """
     dt, T = 1e-4, 0.013
-    par = simulate(disc.Problem(level=1, comm=COMM), pair="P2/P1", dt=dt, T=T).timeseries
+    par = simulate(disc.problem(level=1, comm=COMM), pair="P2/P1", dt=dt, T=T).timeseries
     ser = None
     if COMM.rank == 0:
-        ser = simulate(disc.Problem(level=1, comm=MPI.COMM_SELF), pair="P2/P1", dt=dt, T=T).timeseries
+        ser = simulate(disc.problem(level=1, comm=MPI.COMM_SELF), pair="P2/P1", dt=dt, T=T).timeseries
     ser = COMM.bcast(ser, root=0)
     assert par["n_active"].max() >= 1
     np.testing.assert_array_equal(par["n_active"], ser["n_active"])
@@ -293,7 +294,7 @@ def test_mesh_file_gives_the_same_run(mpi_tmp_path, capsys):
         disc_mesh.write_msh(path, disc_mesh.LEVELS[1], radius=R, centre=(0.0, R + HEIGHT))
     COMM.Barrier()
     kw = dict(pair="P2/P1", dt=1e-4, T=0.012)
-    a = simulate(disc.Problem(mesh_file=path), **kw)
+    a = simulate(disc.problem(mesh_file=path), **kw)
     b = run(**kw)
     assert a.info["problem"]["parameters"]["mesh_file"] == str(path)
     assert a.info["dim_W"] == b["info"]["dim_W"] and b["ts"]["n_active"].max() > 0

@@ -27,7 +27,7 @@ def test_energy_conserved_without_obstacle(pair, mass):
     """Midpoint on the linear problem conserves J^h exactly; each step is one solve with a
     direct factorisation, so only round-off remains: 1e-12 relative over 30 steps
     (~4500 eps; measured 1e-15..3e-14 for every pair and C)."""
-    r = simulate(membrane.Problem(N=6, with_obstacle=False), pair=pair, mass=mass, dt=1e-2, T=0.3)
+    r = simulate(membrane.problem(N=6, with_obstacle=False), pair=pair, mass=mass, dt=1e-2, T=0.3)
     E = r.timeseries["energy"]
     assert r.timeseries["kinetic"].max() > 1e-3 * abs(E[0])     # something moves
     assert max_rel_dev(E) < 1e-12
@@ -37,7 +37,7 @@ def test_energy_conserved_without_obstacle(pair, mass):
 def test_well_posed_pairs_conserve_energy_as_dt_decreases(pair):
     """Paper Figs. 2 and 6: with a well-posed pair the energy error shrinks with dt and is
     small at dt = 1e-3 (the paper's curves are flat to the eye: we ask < 3 %)."""
-    dev = {dt: max_rel_dev(simulate(membrane.Problem(N=10), pair=pair, dt=dt, T=1.0).timeseries["energy"])
+    dev = {dt: max_rel_dev(simulate(membrane.problem(N=10), pair=pair, dt=dt, T=1.0).timeseries["energy"])
            for dt in (1e-2, 1e-3)}
     assert dev[1e-3] < dev[1e-2]
     assert dev[1e-3] < 0.03
@@ -47,7 +47,7 @@ def test_well_posed_pairs_conserve_energy_as_dt_decreases(pair):
 def test_ill_posed_pairs_blow_up(pair):
     """Paper Figs. 3-4: after the first impact the energy grows by a large factor (we ask
     more than 3x), and more at the smaller time step."""
-    growth = {dt: simulate(membrane.Problem(N=10), pair=pair, dt=dt, T=1.0).timeseries["energy"].max() / 0.012
+    growth = {dt: simulate(membrane.problem(N=10), pair=pair, dt=dt, T=1.0).timeseries["energy"].max() / 0.012
               for dt in (1e-2, 1e-3)}
     assert growth[1e-2] > 3.0
     assert growth[1e-3] > growth[1e-2]
@@ -56,7 +56,7 @@ def test_ill_posed_pairs_blow_up(pair):
 @pytest.mark.parametrize("pair", list(PAIRS))
 def test_backward_euler_energy_never_increases(pair):
     """Backward Euler dissipates: J^h(n+1) <= J^h(n) up to round-off (1e-12 of J^h(0))."""
-    E = simulate(membrane.Problem(N=10), pair=pair, scheme="backward-euler", dt=5e-3, T=0.8).timeseries["energy"]
+    E = simulate(membrane.problem(N=10), pair=pair, scheme="backward-euler", dt=5e-3, T=0.8).timeseries["energy"]
     assert np.all(np.diff(E) <= 1e-12 * abs(E[0]))
     assert E[-1] < E[0]                                  # and it does lose energy at impact
 
@@ -71,21 +71,21 @@ def test_constraint_holds_on_the_constrained_iterate(pair, mass):
     are included: there the vertex bounds sit among free edge and bubble dofs."""
     dips = {}
     for dt in (1e-2, 1e-3):
-        r = simulate(membrane.Problem(N=10), pair=pair, mass=mass, dt=dt, T=0.5)
+        r = simulate(membrane.problem(N=10), pair=pair, mass=mass, dt=dt, T=0.5)
         assert r.gap_imposed.min() >= -1e-14
         assert r.info["constraint_imposed_on"] == "U^{n+1/2}"
         dips[dt] = -r.gap_end.min()
     print(f"{pair}: midpoint U^(n+1) dips below the obstacle by {dips[1e-2]:.3e} (dt 1e-2), "
           f"{dips[1e-3]:.3e} (dt 1e-3)")
     assert 0 < dips[1e-3] < 0.3 * dips[1e-2]            # O(dt): a factor 10 in dt gives ~10x
-    r = simulate(membrane.Problem(N=10), pair=pair, mass=mass, scheme="backward-euler", dt=1e-2, T=0.5)
+    r = simulate(membrane.problem(N=10), pair=pair, mass=mass, scheme="backward-euler", dt=1e-2, T=0.5)
     assert r.gap_end.min() >= -1e-14 and r.gap_imposed.min() >= -1e-14
 
 
 def test_contact_happens_and_stress_is_nonnegative():
     """The obstacle is hit (u = 0.02 - 0.3 t^2 reaches 0 at t = 0.258) and the contact
     stress at the centre is a reaction: >= 0, positive during contact."""
-    ts = simulate(membrane.Problem(N=10), pair="P1+/P0", dt=1e-3, T=0.4).timeseries
+    ts = simulate(membrane.problem(N=10), pair="P1+/P0", dt=1e-3, T=0.4).timeseries
     assert ts["n_active"].max() > 0
     assert ts["lambda_probe"].min() >= 0 and ts["lambda_probe"].max() > 0
     first = ts["t"][np.argmax(ts["n_active"] > 0)]
@@ -99,7 +99,7 @@ def test_free_fall_of_the_centre_matches_closed_form(pair):
     under refinement (h halved twice at fixed dt = 1e-3: at least 2x each time)."""
     errs = []
     for N in (8, 16, 32):
-        ts = simulate(membrane.Problem(N=N), pair=pair, dt=1e-3, T=0.25).timeseries
+        ts = simulate(membrane.problem(N=N), pair=pair, dt=1e-3, T=0.25).timeseries
         errs.append(np.max(np.abs(ts["u_probe"] - (0.02 - 0.3 * ts["t"] ** 2))))
     assert errs[1] < errs[0] / 2 and errs[2] < errs[1] / 2
     assert errs[2] < 0.01 * 0.02                          # 1 % of the initial height
@@ -118,8 +118,8 @@ def test_lumped_and_consistent_C_converge_together(pair, T, slope):
     Ns, diffs = (8, 16, 32), []
     for N in Ns:
         dt = 0.125 / N
-        a = simulate(membrane.Problem(N=N), pair=pair, dt=dt, T=T, mass="lumped").timeseries["u_probe"]
-        b = simulate(membrane.Problem(N=N), pair=pair, dt=dt, T=T, mass="consistent").timeseries["u_probe"]
+        a = simulate(membrane.problem(N=N), pair=pair, dt=dt, T=T, mass="lumped").timeseries["u_probe"]
+        b = simulate(membrane.problem(N=N), pair=pair, dt=dt, T=T, mass="consistent").timeseries["u_probe"]
         diffs.append(np.max(np.abs(a - b)))
     rate = np.polyfit(np.log(1.0 / np.array(Ns)), np.log(diffs), 1)[0]
     print(f"{pair}: max |u_lumped - u_consistent| at the centre: {diffs}, fitted rate {rate:.2f}")
@@ -130,9 +130,9 @@ def test_lumped_and_consistent_C_converge_together(pair, T, slope):
 def test_vi_solvers_agree():
     """The semi-smooth Newton (with each linear strategy) and SNES vinewtonrsls solve the
     same LCP: same time series to 1e-8 relative (solver tolerances 1e-10..1e-12)."""
-    ref = simulate(membrane.Problem(N=8), pair="P1+/P0", dt=2e-3, T=0.4).timeseries
+    ref = simulate(membrane.problem(N=8), pair="P1+/P0", dt=2e-3, T=0.4).timeseries
     for kw in ({"linear": "lu"}, {"linear": "amg"}, {"vi_solver": "vinewtonrsls"}):
-        ts = simulate(membrane.Problem(N=8), pair="P1+/P0", dt=2e-3, T=0.4, **kw).timeseries
+        ts = simulate(membrane.problem(N=8), pair="P1+/P0", dt=2e-3, T=0.4, **kw).timeseries
         for c in ("energy", "u_probe"):
             assert np.allclose(ts[c], ref[c], rtol=1e-8, atol=1e-8 * np.abs(ref[c]).max()), (kw, c)
 
@@ -142,8 +142,8 @@ def test_vi_solvers_agree():
 def test_one_and_two_ranks_agree(pair, mass):
     """The distributed run equals a serial run of the same problem to ~1e-10 relative."""
     kw = dict(pair=pair, mass=mass, dt=2e-3, T=0.6)
-    par = simulate(membrane.Problem(N=10, comm=COMM), **kw).timeseries
-    ser = simulate(membrane.Problem(N=10, comm=MPI.COMM_SELF), **kw).timeseries if COMM.rank == 0 else None
+    par = simulate(membrane.problem(N=10, comm=COMM), **kw).timeseries
+    ser = simulate(membrane.problem(N=10, comm=MPI.COMM_SELF), **kw).timeseries if COMM.rank == 0 else None
     ser = COMM.bcast(ser, root=0)
     for c in ("energy", "kinetic", "potential", "u_probe", "lambda_probe", "n_active"):
         scale = max(np.abs(ser[c]).max(), 1e-300)
@@ -156,7 +156,7 @@ def test_solver_failure_names_step_and_time(mpi_tmp_path):
     import json
     with pytest.raises(StepError, match=r"step \d+ \(t = [0-9.e-]+\): semi-smooth Newton did not converge "
                                         r"in 1 iterations \(\d+ constraints still infeasible\)"):
-        simulate(membrane.Problem(N=8), pair="P1+/P0", dt=1e-2, T=0.5, out=mpi_tmp_path,
+        simulate(membrane.problem(N=8), pair="P1+/P0", dt=1e-2, T=0.5, out=mpi_tmp_path,
                  petsc_options={"vi_max_it": "1"})
     if COMM.rank == 0:
         info = json.loads((mpi_tmp_path / "run.json").read_text())
@@ -172,8 +172,8 @@ def test_vinewtonrsls_cycles_on_p2p1_where_the_semismooth_newton_converges():
     semi-smooth Newton solves every step of the same run in at most 3 iterations."""
     kw = dict(pair="P2/P1", mass="lumped", dt=1e-3, T=0.3)
     with pytest.raises(StepError, match=r"step 2[0-9]{2} \(t = 0\.2[0-9]*\): SNES vinewtonrsls diverged"):
-        simulate(membrane.Problem(N=10), vi_solver="vinewtonrsls", **kw)
-    ts = simulate(membrane.Problem(N=10), **kw).timeseries
+        simulate(membrane.problem(N=10), vi_solver="vinewtonrsls", **kw)
+    ts = simulate(membrane.problem(N=10), **kw).timeseries
     assert ts["n_active"].max() > 0 and ts["newton_its"].max() <= 3
 
 
@@ -186,7 +186,7 @@ def test_semismooth_newton_is_a_petsc_snes(capfd):
     opts = PETSc.Options()
     opts["sdm_snes_converged_reason"] = ""      # read at each solve: as from the command line
     try:
-        ts = simulate(membrane.Problem(N=6), pair="P1+/P0", dt=1e-2, T=0.3,
+        ts = simulate(membrane.problem(N=6), pair="P1+/P0", dt=1e-2, T=0.3,
                       petsc_options={"snes_monitor": ""}).timeseries
     finally:
         opts.delValue("sdm_snes_converged_reason")
@@ -200,12 +200,12 @@ def test_semismooth_newton_is_a_petsc_snes(capfd):
         assert np.all(np.array(norms)[last] == 0.0)           # no infeasible bound left
         assert max(norms) > 0                                 # some iterations corrected an active set
     with pytest.raises(StepError, match="did not converge in 1 iterations"):
-        simulate(membrane.Problem(N=6), pair="P1+/P0", dt=1e-2, T=0.3, petsc_options={"snes_max_it": "1"})
+        simulate(membrane.problem(N=6), pair="P1+/P0", dt=1e-2, T=0.3, petsc_options={"snes_max_it": "1"})
 
 
 def test_solver_monitor_prints_each_iteration(capfd):
     """-sdm_vi_monitor prints one line per semi-smooth Newton iteration (on rank 0)."""
-    ts = simulate(membrane.Problem(N=6), pair="P1+/P0", dt=1e-2, T=0.3,
+    ts = simulate(membrane.problem(N=6), pair="P1+/P0", dt=1e-2, T=0.3,
                   petsc_options={"vi_monitor": "1"}).timeseries
     lines = [ln for ln in capfd.readouterr().out.splitlines() if "semi-smooth Newton:" in ln]
     if COMM.rank == 0:

@@ -56,9 +56,9 @@ def runs():
     path = tempfile.mkdtemp(prefix="sdm_pv_") if COMM.rank == 0 else None
     path = Path(COMM.bcast(path, root=0))
     # membrane: free fall reaches u = 0 at t ~ 0.26
-    simulate(membrane.Problem(N=6), pair="P1+/P0", dt=1e-2, T=0.4, out=path / "membrane", write_every=5)
+    simulate(membrane.problem(N=6), pair="P1+/P0", dt=1e-2, T=0.4, out=path / "membrane", write_every=5)
     # disc: the lowest point touches at t ~ 9.6 ms (vector field, quadratic geometry)
-    simulate(disc.Problem(level=1), pair="P2/P1", dt=2.5e-4, T=0.0115, out=path / "disc", write_every=4)
+    simulate(disc.problem(level=1), pair="P2/P1", dt=2.5e-4, T=0.0115, out=path / "disc", write_every=4)
     yield {"membrane": path / "membrane", "disc": path / "disc"}
     COMM.Barrier()
     if COMM.rank == 0:

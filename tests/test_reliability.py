@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from sdm_dolfinx import cli, membrane, simulate
-from sdm_dolfinx.checkpoint import CheckpointError
+from sdm_dolfinx.run import CheckpointError
 
 COMM = MPI.COMM_WORLD
 # A restarted run repeats the same operations: serially it is bit-identical. On 2 ranks the
@@ -39,7 +39,7 @@ def test_restart_continues_the_membrane_exactly(pair, mass, mpi_tmp_path):
     """Stopped at step 23 (checkpoint at 23, since a stop always writes one) and restarted:
     the same CSV as an uninterrupted run, row for row; the same XDMF time steps."""
     kw = dict(pair=pair, mass=mass, dt=2e-3, T=0.4, write_every=5)
-    make = lambda: membrane.Problem(N=8)                                  # noqa: E731
+    make = lambda: membrane.problem(N=8)                                  # noqa: E731
     simulate(make(), out=mpi_tmp_path / "ref", **kw)
     _interrupted_then_restarted(make, mpi_tmp_path / "cut", 23, **kw)
     if COMM.rank == 0:
@@ -53,11 +53,11 @@ def test_restart_continues_the_membrane_exactly(pair, mass, mpi_tmp_path):
 def test_restart_refuses_a_different_run(mpi_tmp_path):
     kw = dict(pair="P1+/P0", dt=2e-3, T=0.1)
     with pytest.raises(Exception):
-        simulate(membrane.Problem(N=6), out=mpi_tmp_path, on_step=lambda n, row: n == 10, **kw)
+        simulate(membrane.problem(N=6), out=mpi_tmp_path, on_step=lambda n, row: n == 10, **kw)
     with pytest.raises(CheckpointError, match="dt"):
-        simulate(membrane.Problem(N=6), out=mpi_tmp_path, restart=True, pair="P1+/P0", dt=1e-3, T=0.1)
+        simulate(membrane.problem(N=6), out=mpi_tmp_path, restart=True, pair="P1+/P0", dt=1e-3, T=0.1)
     with pytest.raises(CheckpointError, match="mesh|problem"):
-        simulate(membrane.Problem(N=7), out=mpi_tmp_path, restart=True, **kw)
+        simulate(membrane.problem(N=7), out=mpi_tmp_path, restart=True, **kw)
 
 
 @pytest.mark.skipif(COMM.size > 1, reason="signals a separate serial process")
@@ -97,13 +97,13 @@ def test_killed_run_keeps_whole_rows_and_restarts(mpi_tmp_path):
         if n == 20:
             raise KeyboardInterrupt("simulated SIGKILL")
     with pytest.raises(KeyboardInterrupt):
-        simulate(membrane.Problem(N=6), out=out, checkpoint_every=14, on_step=kill, **kw)
+        simulate(membrane.problem(N=6), out=out, checkpoint_every=14, on_step=kill, **kw)
     if COMM.rank == 0:
         rows = (out / "timeseries.csv").read_text().splitlines()
         assert len(rows) == 22 and all(len(r.split(",")) == 9 for r in rows)   # header + steps 0..20
-    r = simulate(membrane.Problem(N=6), out=out, restart=True, **kw)
+    r = simulate(membrane.problem(N=6), out=out, restart=True, **kw)
     assert r.info["restarted_from_step"] == 14
-    simulate(membrane.Problem(N=6), out=mpi_tmp_path / "ref", **kw)
+    simulate(membrane.problem(N=6), out=mpi_tmp_path / "ref", **kw)
     if COMM.rank == 0:
         a, b = read_csv(mpi_tmp_path / "ref" / "timeseries.csv"), read_csv(out / "timeseries.csv")
         assert np.array_equal(b[:, 0], np.arange(51)) and np.allclose(a, b, rtol=RTOL, atol=RTOL * np.abs(a).max(axis=0))
@@ -161,7 +161,7 @@ def test_sigkill_then_restart_reproduces_the_run(tmp_path):
     assert cli.main(args + ["--out", str(tmp_path / "ref")]) == 0
     a, b = read_csv(tmp_path / "ref" / "timeseries.csv"), read_csv(cut / "timeseries.csv")
     assert a.shape == b.shape and np.allclose(a, b, rtol=RTOL, atol=RTOL * np.abs(a).max(axis=0))
-    from sdm_dolfinx.render import read_xdmf
+    from sdm_dolfinx.post.render import read_xdmf
     sa, sb = read_xdmf(tmp_path / "ref"), read_xdmf(cut)
     assert sa.times == sb.times and len(sa.times) == 31           # steps 0, 20, ..., 600
     assert sa.fields == sb.fields and len(sa.fields) == 4
@@ -187,7 +187,7 @@ def test_restart_sets_damaged_hdf5_aside(tmp_path):
     assert r.returncode == 0, r.stderr
     assert "could not be read" in r.stderr and "solution.damaged.h5" in r.stderr
     assert (cut / "solution.damaged.h5").exists()
-    from sdm_dolfinx.render import read_xdmf
+    from sdm_dolfinx.post.render import read_xdmf
     times = read_xdmf(cut).times
     assert times[0] > step * 2e-3 - 1e-12 and np.isclose(times[-1], 0.4)
     assert np.array_equal(read_csv(cut / "timeseries.csv")[:, 0], np.arange(201))
@@ -199,18 +199,18 @@ def test_overwrite_discards_the_old_checkpoint(mpi_tmp_path):
     checkpoint copied in from another run is refused by its run_id."""
     kw = dict(pair="P1+/P0", dt=1e-2, T=0.3)
     out, other = mpi_tmp_path / "a", mpi_tmp_path / "b"
-    simulate(membrane.Problem(N=6), out=out, checkpoint_every=5, **kw)      # finished, checkpoint at 30
+    simulate(membrane.problem(N=6), out=out, checkpoint_every=5, **kw)      # finished, checkpoint at 30
     with pytest.raises(KeyboardInterrupt):                                  # the replacement dies at step 3
-        simulate(membrane.Problem(N=6), out=out, checkpoint_every=5,
+        simulate(membrane.problem(N=6), out=out, checkpoint_every=5,
                  on_step=lambda n, row: (_ for _ in ()).throw(KeyboardInterrupt()) if n == 3 else None, **kw)
     with pytest.raises(CheckpointError, match="no checkpoint"):
-        simulate(membrane.Problem(N=6), out=out, restart=True, **kw)
-    simulate(membrane.Problem(N=6), out=other, checkpoint_every=5, **kw)
+        simulate(membrane.problem(N=6), out=out, restart=True, **kw)
+    simulate(membrane.problem(N=6), out=other, checkpoint_every=5, **kw)
     if COMM.rank == 0:
         (out / "checkpoint.npz").write_bytes((other / "checkpoint.npz").read_bytes())
     COMM.Barrier()
     with pytest.raises(CheckpointError, match="another run"):
-        simulate(membrane.Problem(N=6), out=out, restart=True, **kw)
+        simulate(membrane.problem(N=6), out=out, restart=True, **kw)
 
 
 @pytest.mark.skipif(COMM.size > 1, reason="starts its own mpirun")
@@ -219,7 +219,7 @@ def test_exception_on_one_rank_aborts_every_rank(tmp_path):
     down at once: one line naming the rank, a non-zero status, no hang."""
     script = tmp_path / "inject.py"
     script.write_text(
-        "import sys\nfrom mpi4py import MPI\nfrom sdm_dolfinx import cli, output\n"
+        "import sys\nfrom mpi4py import MPI\nfrom sdm_dolfinx import cli\nfrom sdm_dolfinx.run import observers as output\n"
         "orig, n = output.PointProbe.__call__, [0]\n"
         "def bad(self, U):\n    n[0] += 1\n"
         "    if MPI.COMM_WORLD.rank == 1 and n[0] == 6:\n        raise RuntimeError('injected on rank 1')\n"
@@ -263,7 +263,7 @@ BAD = [
     (["membrane", "--checkpoint-every", "-3"], None, "--checkpoint-every"),
     (["membrane", "--probe", "2", "0.5"], None, "--probe"),
     (["membrane", "--bogus"], None, "unrecognised"),
-    (["nosuchproblem"], None, "invalid choice"),
+    (["nosuchproblem"], None, "unknown command"),
     (["membrane", "--config", "/nonexistent/run.toml"], None, "not found"),
     (["membrane"], "dt = 1e-3\nNN = 4\n", "unknown key 'NN'"),
     (["membrane"], 'N = "ten"\n', "key 'N': expected an integer"),
@@ -403,7 +403,7 @@ def test_restart_continues_the_disc_exactly(mpi_tmp_path):
     momentum and elastic energy included)."""
     from sdm_dolfinx import disc
     kw = dict(pair="P2/P1", dt=1e-4, T=0.012, write_every=20)
-    make = lambda: disc.Problem(level=1)                                  # noqa: E731
+    make = lambda: disc.problem(level=1)                                  # noqa: E731
     simulate(make(), out=mpi_tmp_path / "ref", **kw)
     _interrupted_then_restarted(make, mpi_tmp_path / "cut", 105, **kw)
     if COMM.rank == 0:

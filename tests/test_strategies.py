@@ -16,9 +16,10 @@ from petsc4py import PETSc
 import numpy as np
 import pytest
 
-from sdm_dolfinx import disc, membrane, simulate, vi
-from sdm_dolfinx.discretisation import Discretisation
-from sdm_dolfinx.integrator import Integrator
+from sdm_dolfinx import disc, membrane, simulate
+from sdm_dolfinx.method.discretisation import Discretisation
+from sdm_dolfinx.method.integrator import Integrator
+from sdm_dolfinx.solvers import VIError, active_set, augmented, factorisation, schur
 
 COMM = MPI.COMM_WORLD
 COLUMNS = ("energy", "u_probe", "lambda_probe", "n_active", "newton_its")
@@ -50,18 +51,18 @@ def assert_same(ts, ref, rtol, what):
 
 
 def membrane8():
-    return membrane.Problem(N=8, comm=COMM)
+    return membrane.problem(N=8, comm=COMM)
 
 
 def disc1():
-    return disc.Problem(level=1, comm=COMM)
+    return disc.problem(level=1, comm=COMM)
 
 
 @pytest.fixture
 def small_schur(monkeypatch):
     """``schur`` with at most 5 active constraints per dense system: larger active sets go
     through its CG fallback (preconditioned by the same factorisation)."""
-    monkeypatch.setattr(vi, "SCHUR_MAX_ACTIVE", 5)
+    monkeypatch.setattr(schur, "SCHUR_MAX_ACTIVE", 5)
 
 
 def test_membrane_strategies_agree():
@@ -96,7 +97,7 @@ def test_augmented_route_agrees(monkeypatch):
     """P2/P1 through the augmented factorisation (used from 20k dofs) gives K's solution."""
     kw = dict(pair="P2/P1", dt=2e-4, T=0.02)
     ref = series(disc1, linear="lu", **kw)
-    monkeypatch.setattr(vi, "AUG_MIN_ROWS", 0)
+    monkeypatch.setattr(augmented, "AUG_MIN_ROWS", 0)
     for lin in ("schur", "cg-factor"):
         assert_same(series(disc1, linear=lin, **kw), ref, DIRECT_RTOL, lin + " (augmented)")
 
@@ -114,8 +115,8 @@ def test_disc_strategies_agree():
 def test_augmented_factorisation_solves_K(monkeypatch):
     """For P2/P1 the factorised matrix is [A, a B^T; a B, -D], whose Schur complement is the
     step matrix K = a^2 B^T D^-1 B + A: a solve through it solves K x = r to round-off."""
-    monkeypatch.setattr(vi, "AUG_MIN_ROWS", 0)        # the route is taken from 20k rows
-    d = Discretisation(membrane.Problem(N=6, comm=COMM), "P2/P1")
+    monkeypatch.setattr(augmented, "AUG_MIN_ROWS", 0)        # the route is taken from 20k rows
+    d = Discretisation(membrane.problem(N=6, comm=COMM), "P2/P1")
     integ = Integrator(d, "midpoint", 1e-2, linear="schur")
     assert integ.factor_matrix is not None            # P2/P1: M is much denser than A
     fac = integ.solver.fac
@@ -146,7 +147,7 @@ def test_augmented_factorisation_solves_K(monkeypatch):
         v.destroy()
     integ.destroy()
     # P1+/P0 (C diagonal, M as sparse as A): K itself is factorised
-    d2 = Discretisation(membrane.Problem(N=6, comm=COMM), "P1+/P0")
+    d2 = Discretisation(membrane.problem(N=6, comm=COMM), "P1+/P0")
     integ2 = Integrator(d2, "midpoint", 1e-2, linear="schur")
     assert integ2.factor_matrix is None
     integ2.destroy()
@@ -154,9 +155,9 @@ def test_augmented_factorisation_solves_K(monkeypatch):
 
 def test_auto_choice():
     """``auto``: the Schur strategy unless there are many constraints (then CG + AMG)."""
-    assert vi.choose_strategy(200, True) == "schur"
-    assert vi.choose_strategy(vi.SCHUR_MAX_CONSTRAINTS + 1, True) == "amg"
-    assert vi.choose_strategy(vi.SCHUR_MAX_CONSTRAINTS + 1, False) == "schur"
+    assert active_set.choose_strategy(200, True) == "schur"
+    assert active_set.choose_strategy(active_set.SCHUR_MAX_CONSTRAINTS + 1, True) == "amg"
+    assert active_set.choose_strategy(active_set.SCHUR_MAX_CONSTRAINTS + 1, False) == "schur"
     with pytest.raises(ValueError, match="unknown linear strategy"):
         simulate(membrane8(), linear="nope", T=0.01)
 
@@ -169,7 +170,7 @@ def test_schur_two_ranks_equal_serial():
     par = series(disc1, **kw)
     ser = None
     if COMM.rank == 0:
-        r = simulate(disc.Problem(level=1, comm=MPI.COMM_SELF), **kw)
+        r = simulate(disc.problem(level=1, comm=MPI.COMM_SELF), **kw)
         ser = {c: r.timeseries[c].copy() for c in COLUMNS}
         del r
         gc.collect()
@@ -188,14 +189,14 @@ def distributed_factor():
 
 def test_distributed_factorisation_agrees(distributed_factor):
     """The factorisation distributed over the ranks (MUMPS; the default from
-    vi.REDUNDANT_MAX_ROWS rows) gives the time series of the redundant one. On dolfinx 0.9 /
+    factorisation.REDUNDANT_MAX_ROWS rows) gives the time series of the redundant one. On dolfinx 0.9 /
     PETSc 3.22 with 2 ranks this factorisation failed in about 1 run in 3 with MUMPS's
-    default work-space margin (INFOG(1) = -9; CI, 2026-11): vi.factorise now starts from a
+    default work-space margin (INFOG(1) = -9; CI, 2026-11): factorisation.factorise now starts from a
     larger margin and retries with a doubled one."""
     kw = dict(pair="P2/P1", scheme="backward-euler", dt=5e-3, T=0.2)
-    ref = series(lambda: membrane.Problem(N=10, comm=COMM), linear="lu", **kw)
+    ref = series(lambda: membrane.problem(N=10, comm=COMM), linear="lu", **kw)
     for lin in ("schur", "cg-factor"):
-        assert_same(series(lambda: membrane.Problem(N=10, comm=COMM), linear=lin, **kw), ref, DIRECT_RTOL,
+        assert_same(series(lambda: membrane.problem(N=10, comm=COMM), linear=lin, **kw), ref, DIRECT_RTOL,
                     lin + " (distributed factorisation)")
 
 
@@ -209,6 +210,6 @@ def test_failed_factorisation_is_reported():
     for i in range(lo, hi):
         A.setValue(i, i, 0.0 if i == lo else 1.0)
     A.assemble()
-    with pytest.raises(vi.VIError, match=r"MUMPS INFOG\(1\) = -10"):
-        vi.factorise(A, COMM, "sdm_test_singular_", kind="lu", package="mumps")
+    with pytest.raises(VIError, match=r"MUMPS INFOG\(1\) = -10"):
+        factorisation.factorise(A, COMM, "sdm_test_singular_", kind="lu", package="mumps")
     A.destroy()

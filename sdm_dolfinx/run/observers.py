@@ -2,8 +2,6 @@
 
 Only rank 0 writes CSV/JSON; XDMF is written collectively. Scalars are reduced over ranks.
 """
-import json
-import os
 from pathlib import Path
 
 from mpi4py import MPI
@@ -12,11 +10,8 @@ from petsc4py import PETSc
 import numpy as np
 from dolfinx import fem
 
-from . import compat
-
-BASE_COLUMNS = ("step", "t", "energy", "kinetic", "potential", "u_probe", "lambda_probe", "n_active",
-                "newton_its")
-
+from sdm_dolfinx import compat
+from sdm_dolfinx.mpiutil import gather_blocks, gather_vec, write_json  # noqa: F401  (write_json: re-exported)
 
 class PointProbe:
     """Value of a W-function at a point, on every rank (the lowest rank owning it evaluates)."""
@@ -101,38 +96,6 @@ def _fmt(v):
     return repr(float(v))
 
 
-def write_json(path, data, comm):
-    """Atomic JSON write on rank 0 (temporary file, then rename)."""
-    if comm.rank == 0:
-        tmp = Path(str(path) + ".tmp")
-        with open(tmp, "w") as fh:
-            json.dump(data, fh, indent=2, default=_json_default)
-            fh.write("\n")
-        os.replace(tmp, path)
-    comm.Barrier()
-
-
-def _json_default(o):
-    if isinstance(o, np.generic):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    raise TypeError(f"not JSON serialisable: {type(o)}")
-
-
-def gather_blocks(V, values, comm):
-    """Global array (rank 0) of per-block data of space V (owned rows, global block order)."""
-    im = V.dofmap.index_map
-    n = im.size_local
-    parts = comm.gather((im.local_range[0], np.asarray(values)[:n]), root=0)
-    if comm.rank != 0:
-        return None
-    out = np.empty((im.size_global,) + np.asarray(values).shape[1:])
-    for start, a in parts:
-        out[start:start + len(a)] = a
-    return out
-
-
 class StateWriter:
     """state.h5: the native dof vectors of U and V every K steps, for post-processing.
 
@@ -176,8 +139,7 @@ class StateWriter:
 
     def write(self, U, V, step, t):
         """Gather U and V to rank 0 and append them, with the step and time, to state.h5."""
-        from .checkpoint import gather
-        u, v = gather(U, self.comm), gather(V, self.comm)
+        u, v = gather_vec(U, self.comm), gather_vec(V, self.comm)
         if self.comm.rank == 0:
             import h5py
             with h5py.File(self.path, "a") as h5:

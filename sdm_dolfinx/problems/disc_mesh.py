@@ -10,7 +10,7 @@ from mpi4py import MPI
 
 import numpy as np
 
-from . import compat
+from sdm_dolfinx import compat
 
 #: facet tags of the boundary: the lower and the upper half circle
 LOWER, UPPER = 1, 2

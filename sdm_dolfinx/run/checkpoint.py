@@ -17,23 +17,13 @@ from mpi4py import MPI
 
 import numpy as np
 
+from sdm_dolfinx.mpiutil import atomic_write, atomic_write_text, gather_rows
+
 CHECKPOINT = "checkpoint.npz"
 
 
 class CheckpointError(RuntimeError):
     """A checkpoint is missing, unreadable or does not match the run."""
-
-
-def gather(vec, comm):
-    """The global array of a PETSc vector, on rank 0 (None elsewhere)."""
-    r0, _ = vec.getOwnershipRange()
-    parts = comm.gather((r0, np.array(vec.array)), root=0)
-    if comm.rank != 0:
-        return None
-    out = np.empty(vec.getSize())
-    for start, a in parts:
-        out[start:start + len(a)] = a
-    return out
 
 
 def mesh_fingerprint(msh):
@@ -61,11 +51,6 @@ def _owned(space, vec):
     return space.tabulate_dof_coordinates()[:n], np.array(vec.array).reshape(n, bs)
 
 
-def _gather_rows(a, comm):
-    parts = comm.gather(np.asarray(a), root=0)
-    return np.concatenate(parts) if comm.rank == 0 else None
-
-
 def save(folder, comm, fields, active_x, meta):
     """Write ``folder/checkpoint.npz`` atomically (collective).
 
@@ -76,13 +61,13 @@ def save(folder, comm, fields, active_x, meta):
     data = {}
     for name, (space, vec) in fields.items():
         x, v = _owned(space, vec)
-        data[name + "_x"], data[name] = _gather_rows(x, comm), _gather_rows(v, comm)
-    data["active_x"] = _gather_rows(np.asarray(active_x, dtype=float).reshape(-1, 3), comm)
+        data[name + "_x"], data[name] = gather_rows(x, comm), gather_rows(v, comm)
+    data["active_x"] = gather_rows(np.asarray(active_x, dtype=float).reshape(-1, 3), comm)
     if comm.rank == 0:
-        path = Path(folder) / CHECKPOINT
-        tmp = path.with_name(path.name + ".tmp.npz")
-        np.savez(tmp, meta=json.dumps(meta), **data)
-        os.replace(tmp, path)
+        def write(tmp):
+            with open(tmp, "wb") as fh:         # a file object: savez would append .npz to a name
+                np.savez(fh, meta=json.dumps(meta), **data)
+        atomic_write(Path(folder) / CHECKPOINT, write)
     comm.Barrier()
 
 
@@ -203,9 +188,7 @@ def truncate_csv(path, last_step, comm):
     if comm.rank == 0:
         lines = _whole_rows(Path(path).read_text().splitlines())
         keep = lines[:1] + [ln for ln in lines[1:] if int(ln.split(",", 1)[0]) <= last_step]
-        tmp = Path(str(path) + ".tmp")
-        tmp.write_text("\n".join(keep) + "\n")
-        os.replace(tmp, path)
+        atomic_write_text(path, "\n".join(keep) + "\n")
         rows = keep
     return comm.bcast(rows, root=0)
 
@@ -234,7 +217,5 @@ def truncate_xdmf(xdmf, t_last, comm):
                 for name in drop:
                     if name in h5:
                         del h5[name]
-        tmp = Path(str(xdmf) + ".tmp")
-        tmp.write_text(text)
-        os.replace(tmp, xdmf)
+        atomic_write_text(xdmf, text)
     comm.Barrier()

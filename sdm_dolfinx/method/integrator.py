@@ -18,12 +18,12 @@ import numpy as np
 import ufl
 from dolfinx import fem
 
-from . import compat
-from .vi import VIError, choose_strategy, make_vi_solver, sparse_factor_matrix
+from sdm_dolfinx import compat
+from sdm_dolfinx.method import schemes
+from sdm_dolfinx.solvers import VIError, choose_strategy, make_vi_solver, sparse_factor_matrix
 
-SCHEMES = {"midpoint": 2.0, "backward-euler": 1.0}
-#: where each scheme imposes the constraint (and so where it holds exactly)
-CONSTRAINED_ITERATE = {"midpoint": "U^{n+1/2}", "backward-euler": "U^{n+1}"}
+#: the registered time schemes' names (:mod:`sdm_dolfinx.method.schemes`)
+SCHEMES = schemes.names()
 
 
 class StepError(RuntimeError):
@@ -38,15 +38,14 @@ class Integrator:
         scheme: ``"midpoint"`` or ``"backward-euler"``.
         dt: the time step.
         vi_solver: ``"ssn"`` (semi-smooth Newton, default), ``"vinewtonrsls"``, ``"vinewtonssls"``.
-        linear: linear strategy of the semi-smooth Newton (see :mod:`sdm_dolfinx.vi`).
+        linear: linear strategy of the semi-smooth Newton (see :mod:`sdm_dolfinx.solvers`).
         options: extra PETSc options for the step solver.
     """
 
     def __init__(self, disc, scheme="midpoint", dt=1e-3, vi_solver="ssn", linear="auto", options=None):
-        if scheme not in SCHEMES:
-            raise ValueError(f"unknown scheme {scheme!r}; choose one of {', '.join(SCHEMES)}")
+        self.time_scheme = schemes.get(scheme)
         self.disc, self.scheme, self.dt = disc, scheme, float(dt)
-        self.alpha = SCHEMES[scheme] / self.dt
+        self.alpha = self.time_scheme.factor / self.dt
         self.block = disc.mass == "consistent"
         self.nW = disc.A.getLocalSize()[0]
         self._build()
@@ -156,21 +155,38 @@ class Integrator:
         info["gap_imposed"] = self.disc.comm.allreduce(
             float(np.min(x[d.cdofs] - d.lb, initial=np.inf)), op=MPI.MIN)
         Un = U.array.copy()
-        if self.scheme == "midpoint":
-            U.array[:] = 2.0 * x - Un
-            if self.block:
-                V.array[:] = 2.0 * X.array[nW:] - V.array
-            else:
-                V.array[:] = 2.0 * self.alpha * (x - Un) - V.array
+        ts = self.time_scheme
+        U.array[:] = ts.displacement(x, Un)
+        if self.block:
+            V.array[:] = ts.velocity_block(X.array[nW:], V.array)
         else:
-            U.array[:] = x
-            if self.block:
-                V.array[:] = X.array[nW:]
-            else:
-                V.array[:] = self.alpha * (x - Un)
+            V.array[:] = ts.velocity(x, Un, V.array, self.alpha)
         info["gap_end"] = self.disc.comm.allreduce(
             float(np.min(U.array[d.cdofs] - d.lb, initial=np.inf)), op=MPI.MIN)
         return info
+
+    def initial_velocity(self, V):
+        """The velocity unknown of this formulation from Vbar0 in W^h: Vbar0 itself, or (block
+        variant) V0 in H^h with C V0 = B Vbar0 (condition (6) holds by construction)."""
+        if not self.block:
+            return V
+        bv = self.disc.B.createVecLeft()
+        self.disc.B.mult(V, bv)
+        return self.disc.solve_C(bv)
+
+    @property
+    def active(self):
+        """Which owned constrained dofs are active (the step solver's active set)."""
+        return getattr(self.solver, "active", np.zeros(len(self.disc.cdofs), dtype=bool))
+
+    @active.setter
+    def active(self, mask):
+        self.solver.active = mask
+
+    @property
+    def linear_its(self):
+        """Linear (Krylov) iterations of the step solver since the start of the run."""
+        return self.solver.total_linear_its
 
     @property
     def lam(self):

@@ -18,8 +18,11 @@ import numpy as np
 import ufl
 from dolfinx import fem, mesh as dmesh
 
-from . import compat, problem as _problem
-from .disc_mesh import ALGORITHM, LEVELS, LOWER, make_mesh, read_mesh
+from sdm_dolfinx import compat
+
+from sdm_dolfinx.problems import base as _problem
+from sdm_dolfinx.problems.base import Param, ProblemSpec
+from sdm_dolfinx.problems.disc_mesh import ALGORITHM, LEVELS, LOWER, make_mesh, read_mesh
 
 #: the potential contact zones: the lower half circle (y <= centre) or the whole boundary
 CONTACT_ZONES = ("lower", "all")
@@ -47,28 +50,9 @@ def sigma(u, lame_lambda, lame_mu):
     return lame_lambda * ufl.tr(eps) * ufl.Identity(len(u)) + 2.0 * lame_mu * eps
 
 
-def Problem(level=1, h=None, radius=20.0, height=10.0, rho=1e-6, lame_lambda=300.0, lame_mu=150.0,
-            gravity=9810.0, v0=-1000.0, contact_zone="lower", with_contact=True, comm=MPI.COMM_WORLD,
-            mesh_file=None):
-    """The paper's falling disc.
-
-    Args:
-        level: named mesh level (:data:`sdm_dolfinx.disc_mesh.LEVELS`), used when h is None.
-        h: gmsh mesh size in mm (overrides ``level``).
-        radius: disc radius (mm).
-        height: initial height of the lowest point A above the foundation y = 0 (mm).
-        rho: density (t/mm^3).
-        lame_lambda, lame_mu: Lamé coefficients (N/mm^2).
-        gravity: gravitational acceleration, downward (mm/s^2).
-        v0: initial vertical velocity of the whole disc (mm/s, negative = downward).
-        contact_zone: ``"lower"`` (boundary vertices with y <= centre) or ``"all"``.
-        with_contact: False removes the foundation (free flight, for conservation checks).
-        comm: the communicator the mesh lives on.
-        mesh_file: a gmsh ``.msh`` file of this disc (linear or curved triangles) used
-            instead of the generated mesh (``level`` and ``h`` are then not used); its
-            bounding box must be the disc of ``radius`` with A at ``height``
-            (:func:`sdm_dolfinx.disc_mesh.read_mesh`).
-    """
+def _build(comm, level, h, mesh_file, radius, height, rho, lame_lambda, lame_mu, gravity, v0, contact_zone,
+           with_contact):
+    """The disc Problem for declared values (see :data:`SPEC`)."""
     if contact_zone not in CONTACT_ZONES:
         raise ValueError(f"unknown contact zone {contact_zone!r}; choose one of {', '.join(CONTACT_ZONES)}")
     cy = radius + height
@@ -131,71 +115,50 @@ def total_mass(problem):
     return problem.mesh.comm.allreduce(m, op=MPI.SUM)
 
 
-#: defaults of the command line (paper section 5)
-DEFAULTS = {"pair": "P2/P1", "scheme": "midpoint", "dt": 1e-4, "T": 0.02, "time_unit": "s"}
+#: the disc's parameters, declared once (command line, TOML, run.json, rebuild)
+PARAMS = (
+    Param("level", 1, "mesh level; P2 dofs close to the paper's Table 2 (622, 2782, 11306, 45706, 126892, 511386)",
+          type=int, choices=tuple(sorted(LEVELS))),
+    Param("h", None, "gmsh mesh size (overrides --level)", unit="mm", type=float, low=0.0, low_strict=True),
+    Param("mesh_file", None, "a gmsh .msh file of the disc (3- or 6-node triangles, mm) instead of --level/--h; "
+          "its bounding box must match --radius and --height", type=Path, flag="mesh", metavar="FILE"),
+    Param("radius", 20.0, "disc radius", unit="mm", low=0.0, low_strict=True),
+    Param("height", 10.0, "initial height of the lowest point A above the foundation", unit="mm", low=0.0),
+    Param("rho", 1e-6, "density", unit="t/mm^3", low=0.0, low_strict=True),
+    Param("lame_lambda", 300.0, "Lamé lambda", unit="N/mm^2"),
+    Param("lame_mu", 150.0, "Lamé mu", unit="N/mm^2", low=0.0, low_strict=True),
+    Param("gravity", 9810.0, "gravitational acceleration (downward)", unit="mm/s^2"),
+    Param("v0", -1000.0, "initial vertical velocity of the disc, negative downward", unit="mm/s"),
+    Param("contact_zone", "lower", "boundary vertices that may touch: the lower half circle or all", type=str,
+          choices=CONTACT_ZONES),
+    Param("with_contact", True, "remove the foundation (free flight)", flag="no-contact"),
+)
 
 
-def add_arguments(parser):
-    """The disc's own command-line options (units: mm, N, s, tonne)."""
-    g = parser.add_argument_group("disc (paper section 5; units mm, N, s, tonne: --dt and --T in s)")
-    g.add_argument("--level", type=int, default=1, choices=sorted(LEVELS),
-                   help="mesh level; P2 dofs close to the paper's Table 2 (622, 2782, 11306, 45706, 126892, "
-                        "511386) (default 1)")
-    g.add_argument("--h", type=float, default=None, help="gmsh mesh size in mm (overrides --level)")
-    g.add_argument("--mesh", type=Path, default=None, metavar="FILE",
-                   help="a gmsh .msh file of the disc (3- or 6-node triangles, mm) instead of --level/--h; its "
-                        "bounding box must match --radius and --height")
-    g.add_argument("--radius", type=float, default=20.0, help="disc radius in mm (default 20)")
-    g.add_argument("--height", type=float, default=10.0,
-                   help="initial height of the lowest point A above the foundation, in mm (default 10)")
-    g.add_argument("--rho", type=float, default=1e-6, help="density in t/mm^3 (default 1e-6)")
-    g.add_argument("--lame-lambda", type=float, default=300.0, help="Lamé lambda in N/mm^2 (default 300)")
-    g.add_argument("--lame-mu", type=float, default=150.0, help="Lamé mu in N/mm^2 (default 150)")
-    g.add_argument("--gravity", type=float, default=9810.0,
-                   help="gravitational acceleration (downward) in mm/s^2 (default 9810)")
-    g.add_argument("--v0", type=float, default=-1000.0,
-                   help="initial vertical velocity of the disc in mm/s, negative downward (default -1000)")
-    g.add_argument("--contact-zone", choices=CONTACT_ZONES, default="lower",
-                   help="boundary vertices that may touch: the lower half circle or all (default lower)")
-    g.add_argument("--no-contact", action="store_true", help="remove the foundation (free flight)")
-
-
-def check_arguments(args):
-    """Messages for out-of-range disc options (empty list when all is well)."""
+def _check(values, label):
     errors = []
-    finite = {"--radius": args.radius, "--height": args.height, "--rho": args.rho,
-              "--lame-lambda": args.lame_lambda, "--lame-mu": args.lame_mu, "--gravity": args.gravity,
-              "--v0": args.v0}
-    if args.h is not None:
-        finite["--h"] = args.h
-    bad = [k for k, v in finite.items() if not np.isfinite(v)]
-    errors += [f"{k} must be a finite number" for k in bad]
-    if bad:
-        return errors
-    if args.mesh is not None:
-        if args.h is not None:
-            errors.append("--mesh and --h: choose one")
-        elif not args.mesh.is_file():
-            errors.append(f"--mesh {args.mesh}: no such file")
-    if args.h is not None and not 0 < args.h <= args.radius:
-        errors.append(f"--h must be in (0, radius] mm (got {args.h})")
-    if args.radius <= 0:
-        errors.append(f"--radius must be > 0 mm (got {args.radius})")
-    if args.height < 0:
-        errors.append(f"--height must be >= 0 mm (got {args.height})")
-    if args.rho <= 0:
-        errors.append(f"--rho must be > 0 t/mm^3 (got {args.rho})")
-    if args.lame_mu <= 0:
-        errors.append(f"--lame-mu must be > 0 N/mm^2 (got {args.lame_mu})")
-    if args.lame_lambda + args.lame_mu <= 0:
-        errors.append(f"--lame-lambda + --lame-mu must be > 0 in plane strain (got {args.lame_lambda} + "
-                      f"{args.lame_mu})")
+    if values["mesh_file"] is not None:
+        if values["h"] is not None:
+            errors.append(f"{label('mesh_file')} and {label('h')}: choose one")
+        elif not Path(values["mesh_file"]).is_file():
+            errors.append(f"{label('mesh_file')} {values['mesh_file']}: no such file")
+    if values["h"] is not None and values["h"] > values["radius"]:
+        errors.append(f"{label('h')} must be in (0, radius] mm (got {values['h']})")
+    if values["lame_lambda"] + values["lame_mu"] <= 0:
+        errors.append(f"{label('lame_lambda')} + {label('lame_mu')} must be > 0 in plane strain (got "
+                      f"{values['lame_lambda']} + {values['lame_mu']})")
     return errors
 
 
-def problem_from_args(args, comm):
-    """The disc :func:`Problem` from the command line's parsed options."""
-    return Problem(level=args.level, h=args.h, radius=args.radius, height=args.height, rho=args.rho,
-                   lame_lambda=args.lame_lambda, lame_mu=args.lame_mu, gravity=args.gravity, v0=args.v0,
-                   contact_zone=args.contact_zone, with_contact=not args.no_contact, comm=comm,
-                   mesh_file=args.mesh)
+SPEC = ProblemSpec(
+    name="disc", build=_build, params=PARAMS, check=_check,
+    doc=(__doc__ or "").strip(),
+    defaults={"pair": "P2/P1", "scheme": "midpoint", "dt": 1e-4, "T": 0.02, "time_unit": "s"},
+)
+
+
+def problem(comm=MPI.COMM_WORLD, **values):
+    """The paper's falling disc; ``values`` are :data:`PARAMS` (``level``, ``h``, ``mesh_file``,
+    ``radius``, ``height``, ``rho``, ``lame_lambda``, ``lame_mu``, ``gravity``, ``v0``,
+    ``contact_zone``, ``with_contact``), the others at their defaults."""
+    return SPEC.problem(comm, **values)

@@ -4,7 +4,7 @@ A pair is pure data; :mod:`sdm_dolfinx.discretisation` turns it into matrices.
 """
 from dataclasses import dataclass
 
-from . import compat
+from sdm_dolfinx import compat
 
 #: how C = (psi_i, psi_j) enters M = B^T C^-1 B
 MASS_TREATMENTS = ("standard", "diagonal", "lumped", "consistent")

@@ -11,8 +11,8 @@ import numpy as np
 import ufl
 from dolfinx import fem, mesh as dmesh
 
-from . import compat
-from .pairs import MASS_TREATMENTS, get_pair
+from sdm_dolfinx import compat
+from sdm_dolfinx.method.pairs import MASS_TREATMENTS, get_pair
 
 
 def vertex_to_dof(V, vertices):

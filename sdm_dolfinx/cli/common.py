@@ -1,0 +1,88 @@
+"""What every command shares: one-line usage errors (exit 2), --help on rank 0, internal
+errors that take every rank down, and argparse types."""
+import argparse
+import math
+import os
+import re
+import sys
+
+#: argparse reads "-6e-1" as an option: numbers in exponent notation count as numbers too
+_NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
+
+
+class UsageError(Exception):
+    """Bad input: reported in one line with exit status 2."""
+
+
+class Parser(argparse.ArgumentParser):
+    """An ArgumentParser whose errors raise UsageError (one line, status 2) instead of exiting,
+    and which takes negative numbers in any notation as values."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = _NEGATIVE_NUMBER
+
+    def error(self, message):
+        raise UsageError(f"{self.prog}: error: {message}")
+
+
+def parse_or_help(parser, argv, comm):
+    """A command's arguments, or None after printing its ``--help`` (on rank 0).
+
+    Raises:
+        UsageError: bad arguments (``parser`` is a :class:`Parser`).
+    """
+    if "-h" in argv or "--help" in argv:
+        if comm.rank == 0:
+            parser.print_help()
+        return None
+    return parser.parse_args(argv)
+
+
+def report_usage_error(prog, error, comm):
+    """Print a :class:`UsageError` as one line on stderr (rank 0), prefixed with ``prog``;
+    returns the exit status 2."""
+    if comm.rank == 0:
+        msg = str(error)
+        print(msg if msg.startswith(prog) else f"{prog}: error: {msg}", file=sys.stderr, flush=True)
+    return 2
+
+
+def say_error(prog, message, comm, status):
+    """Print ``prog: error: message`` on rank 0's stderr; returns ``status``."""
+    if comm.rank == 0:
+        print(f"{prog}: error: {message}", file=sys.stderr, flush=True)
+    return status
+
+
+def internal_error(prog, e, comm):
+    """An unexpected exception: say it in one line (SDM_DEBUG=1 shows the traceback) and take
+    every rank down (no deadlock when one rank fails alone); returns exit status 1."""
+    print(f"{prog}: internal error on rank {comm.rank}: {type(e).__name__}: {e}", file=sys.stderr, flush=True)
+    if os.environ.get("SDM_DEBUG"):
+        raise e
+    if comm.size > 1:
+        comm.Abort(1)
+    return 1
+
+
+def positive_float(text):
+    """argparse type: a finite number > 0."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not math.isfinite(v) or v <= 0:
+        raise argparse.ArgumentTypeError(f"must be a positive finite number (got {text})")
+    return v
+
+
+def check_writable(path, what):
+    """A file the command will write: not a folder, and its nearest existing folder writable."""
+    if path.exists() and path.is_dir():
+        raise UsageError(f"{what} {path} is a folder")
+    d = path.parent
+    while not d.exists():
+        d = d.parent
+    if not os.access(d, os.W_OK | os.X_OK):
+        raise UsageError(f"cannot write {what} {path} ({d} is not writable)")

@@ -1,0 +1,258 @@
+"""The run commands: ``python -m sdm_dolfinx PROBLEM [options]`` for a registered problem and
+``python -m sdm_dolfinx run --problem-file FILE [options]`` for a problem of one's own.
+
+The options are the problem's declared parameters (:mod:`.params`) plus the run options
+below; ``--config FILE`` reads them from TOML, ``--restart DIR`` continues the run in DIR.
+Bad input: one line on stderr, exit status 2, nothing written. A failed step: one line, exit
+status 1, the files kept up to the last good step and ``run.json`` saying ``"failed"``. An
+interrupted run: exit status 128 + the signal, a checkpoint written.
+"""
+import argparse
+import sys
+from pathlib import Path
+
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from sdm_dolfinx.cli.common import Parser, UsageError, positive_float, say_error
+from sdm_dolfinx.cli.config import load_config, read_toml
+from sdm_dolfinx.cli.params import add_param_options, param_values
+from sdm_dolfinx.method import schemes
+from sdm_dolfinx.method.integrator import StepError
+from sdm_dolfinx.method.pairs import MASS_TREATMENTS, PAIRS
+from sdm_dolfinx.problems import ProblemInputError, get, load_file, spec_of_run
+from sdm_dolfinx.problems.disc_mesh import MeshError
+from sdm_dolfinx.run import (CheckpointError, Interrupted, RunFolderError, RunInputError, SolverSetupError, plan,
+                             read_info)
+from sdm_dolfinx.solvers import LINEAR_STRATEGIES, VI_OPTIONS, VI_SOLVERS
+
+PROG = "python -m sdm_dolfinx"
+#: the parsed options that are run options of :func:`sdm_dolfinx.run.plan`
+RUN_OPTIONS = ("pair", "mass", "scheme", "dt", "T", "vi_solver", "linear", "write_every", "checkpoint_every")
+
+PETSC_EPILOG = (
+    "PETSc options of the step solver can be added as -sdm_<option>: -sdm_vi_rtol (default 1e-10, "
+    "complementarity tolerance relative to the right-hand side), -sdm_vi_max_it (default 500 for "
+    "ssn, 60 for SNES), -sdm_vi_monitor (a line per iteration); the semi-smooth Newton is a PETSc SNES "
+    "of type python: -sdm_snes_monitor, -sdm_snes_converged_reason, -sdm_snes_max_it, -sdm_snes_view, "
+    "and -sdm_ksp_*, -sdm_factor_pc_factor_mat_solver_type for its linear solves; with --vi-solver "
+    "vinewtonrsls: -sdm_snes_*, -sdm_ksp_*, -sdm_pc_*.")
+
+
+def add_run_options(p, defaults):
+    """The options common to every run command (pair, scheme, dt, T, solver, output, restart)."""
+    S = argparse.SUPPRESS
+    g = p.add_argument_group("discretisation and run")
+    g.add_argument("--pair", default=S, choices=list(PAIRS), metavar="PAIR",
+                   help=f"(W^h, H^h) pair: {', '.join(PAIRS)} (default {defaults.get('pair', 'P1+/P0')})")
+    g.add_argument("--mass", choices=MASS_TREATMENTS, default=S,
+                   help="C treatment: diagonal (P0), lumped or consistent (P1 velocity; consistent solves the "
+                        "(U, V) block system), standard (H = W); default: diagonal for P0, lumped for P1")
+    g.add_argument("--scheme", default=S, choices=list(schemes.names()),
+                   help=f"time scheme (default {defaults.get('scheme', 'midpoint')})")
+    unit = defaults.get("time_unit", "")
+    unit = f", {unit}" if unit else ""
+    g.add_argument("--dt", type=positive_float, default=S, help=f"time step (default {defaults.get('dt')}{unit})")
+    g.add_argument("--T", type=positive_float, default=S, help=f"final time (default {defaults.get('T')}{unit})")
+    g.add_argument("--vi-solver", choices=VI_SOLVERS, default=S,
+                   help="step solver: ssn = semi-smooth Newton / primal-dual active set (default), or PETSc SNES "
+                        "vinewtonrsls / vinewtonssls")
+    g.add_argument("--linear", choices=LINEAR_STRATEGIES, default=S,
+                   help="linear solves of the semi-smooth Newton: auto = schur, or amg above 10000 constrained "
+                        "dofs (default); schur = one factorisation of the step matrix per run, the active set by a "
+                        "small dense Schur complement of cached columns K^-1 e_i; cg-factor = one factorisation, CG "
+                        "on the inactive set; lu = refactorise at every Newton iteration; amg = CG + BoomerAMG on "
+                        "the reduced matrix (set up when the active set changes); cg-amg = CG on the inactive set "
+                        "with one BoomerAMG set-up of the step matrix")
+    o = p.add_argument_group("output")
+    o.add_argument("--out", type=Path, default=None, help="output folder (default output/<problem>)")
+    o.add_argument("--write-every", type=int, default=S, metavar="K",
+                   help="write the XDMF fields every K steps (default 10)")
+    o.add_argument("--overwrite", action="store_true", help="replace a run in --out")
+    o.add_argument("--quiet", action="store_true", help="no progress lines")
+    r = p.add_argument_group("configuration and restart")
+    r.add_argument("--config", type=Path, default=None, metavar="FILE",
+                   help="TOML file of option = value pairs (names as here, without --); the command line overrides it")
+    r.add_argument("--checkpoint-every", type=int, default=S, metavar="K",
+                   help="write DIR/checkpoint.npz every K steps (a SIGINT/SIGTERM always writes one)")
+    r.add_argument("--restart", type=Path, default=None, metavar="DIR",
+                   help="continue the run in DIR from its checkpoint, with the problem, parameters and options of "
+                        "DIR/run.json (same number of ranks; only --checkpoint-every and --quiet may be given)")
+    p.epilog = PETSC_EPILOG
+
+
+def build_parser(spec, command):
+    """The parser of a run command for the problem ``spec`` (None: ``run`` before a problem is chosen)."""
+    desc = spec.doc if spec is not None else "Run a problem of your own: --problem-file FILE (docs/add_a_problem.md)."
+    p = Parser(prog=f"{PROG} {command}", description=desc, formatter_class=argparse.RawDescriptionHelpFormatter)
+    if command == "run":
+        g = p.add_argument_group("problem")
+        g.add_argument("--problem", default=None, metavar="NAME", help="a registered problem (membrane, disc, ...)")
+        g.add_argument("--problem-file", type=Path, default=None, metavar="FILE",
+                       help="a Python file defining PROBLEM = ProblemSpec(...) (docs/add_a_problem.md)")
+    if spec is not None:
+        add_param_options(p, spec)
+    add_run_options(p, spec.defaults if spec is not None else {})
+    return p
+
+
+def _choose_spec(command, argv):
+    """The problem's declaration: the command's, or for ``run`` the one named by --problem /
+    --problem-file (also as TOML keys), or the restarted run's."""
+    pre = Parser(add_help=False, prog=f"{PROG} {command}")
+    for opt in ("--problem", "--problem-file", "--config", "--restart"):
+        pre.add_argument(opt, default=None)
+    known, _ = pre.parse_known_args(argv)
+    if known.restart is not None:
+        try:
+            info = read_info(known.restart, MPI.COMM_WORLD)
+            spec = spec_of_run(info.get("problem", {"name": None}))
+        except (RunFolderError, ProblemInputError, KeyError) as e:
+            raise UsageError(f"--restart {known.restart}: {e}") from None
+        if command != "run" and spec.name != command:
+            raise UsageError(f"--restart {known.restart}: that folder holds a {spec.name!r} run, not {command!r}")
+        return spec
+    if command != "run":
+        return get(command)
+    name, path = known.problem, known.problem_file
+    if known.config is not None:
+        data = read_toml(Path(known.config))
+        name = name or data.get("problem")
+        path = path or data.get("problem-file")
+    if name is not None and path is not None:
+        raise UsageError("--problem and --problem-file: choose one")
+    if path is not None:
+        return load_file(path)
+    if name is not None:
+        return get(name)
+    return None
+
+
+def parse(command, argv):
+    """(spec, args, extra PETSc arguments) of a run command."""
+    spec = _choose_spec(command, argv)
+    parser = build_parser(spec, command)
+    if spec is None:
+        if "-h" in argv or "--help" in argv:
+            return None, parser, None
+        raise UsageError(f"{PROG} run: error: choose the problem: --problem NAME or --problem-file FILE")
+    args, extra = parser.parse_known_args(argv)
+    if args.config is not None:
+        data = read_toml(args.config)
+        if command != "run" and data.get("problem", command) != command:
+            raise UsageError(f"{args.config}: key 'problem' is {data.get('problem')!r} but the command is "
+                             f"{command!r}")
+        parser.set_defaults(**load_config(args.config, parser, data))
+        args, extra = parser.parse_known_args(argv)
+    if "-h" in argv or "--help" in argv:
+        return spec, parser, None
+    return spec, args, extra
+
+
+def make_plan(spec, args, command, comm):
+    """The checked :class:`~sdm_dolfinx.run.RunPlan` (UsageError with every reason otherwise)."""
+    params = param_values(args, spec)
+    opts = {k: getattr(args, k) for k in RUN_OPTIONS if hasattr(args, k)}
+    try:
+        if args.restart is not None:
+            if params:
+                raise UsageError(f"--restart continues the run with its own parameters; remove "
+                                 f"{', '.join('--' + spec.param(k).option for k in params)}")
+            if args.out is not None and args.out != args.restart:
+                raise UsageError("--restart continues the run in its own folder; remove --out")
+            return plan(out=args.restart, restart=True, comm=comm, **opts)
+        out = args.out if args.out is not None else Path("output") / spec.name
+        return plan(spec, params, out=out, overwrite=args.overwrite, comm=comm, cli=True, **opts)
+    except RunInputError as e:
+        raise UsageError(_cli_words(str(e))) from None
+
+
+def _cli_words(msg):
+    """Run-option names as the command line spells them."""
+    for k in ("write_every", "checkpoint_every", "vi_solver", "dt", "T"):
+        msg = msg.replace(f"{k} must", f"--{k.replace('_', '-')} must").replace(f"{k} (", f"--{k} (")
+    return msg
+
+
+def petsc_overrides(extra):
+    """Command-line PETSc options (-sdm_...), passed on to PETSc.Options."""
+    opts = PETSc.Options()
+    i = 0
+    while i < len(extra):
+        key = extra[i]
+        if not key.startswith("-sdm_"):
+            raise UsageError(f"unrecognised argument {key!r} (PETSc options start with -sdm_)")
+        value = None
+        if i + 1 < len(extra) and not extra[i + 1].startswith("-sdm_"):
+            value = extra[i + 1]
+            i += 1
+        _check_vi_option(key, value)
+        opts.setValue(key[1:], value if value is not None else "")
+        i += 1
+    if extra and not opts.hasName("options_left"):
+        # PETSc lists the options nobody read when it finalises (a misspelt -sdm_ option
+        # would otherwise be ignored in silence)
+        opts.setValue("options_left", "")
+
+
+def _check_vi_option(key, value):
+    """The step solver's own -sdm_vi_* options, checked before anything runs (VI_OPTIONS)."""
+    name = key[len("-sdm_"):]
+    if name not in VI_OPTIONS:
+        return
+    kind, ok, allowed = VI_OPTIONS[name]
+    try:
+        good = ok(kind(value if value is not None else ""))
+    except ValueError:
+        good = False
+    if not good:
+        raise UsageError(f"{key}: {value!r} is not {allowed}")
+
+
+def main(command, argv, comm=MPI.COMM_WORLD):
+    """A run command; returns the exit status (0 ok, 1 failed run, 2 bad input, 128+sig interrupted)."""
+    prog = f"{PROG} {command}"
+    try:
+        spec, args, extra = parse(command, argv)
+        if extra is None:                       # --help
+            if comm.rank == 0:
+                args.print_help()
+            return 0
+        the_plan = make_plan(spec, args, command, comm)
+        petsc_overrides(extra)
+    except (UsageError, ProblemInputError) as e:
+        msg = str(e)
+        return say_error(prog, msg.split("error: ", 1)[1] if msg.startswith(prog) else msg, comm, 2)
+    return execute(the_plan, args, argv, prog, comm)
+
+
+def execute(the_plan, args, argv, prog, comm):
+    """Run a checked plan from the command line: progress, one-line errors, exit status."""
+    progress = not args.quiet
+    o = the_plan.options
+    if progress and comm.rank == 0:
+        what = f"restarting {the_plan.out}" if the_plan.restart else f"-> {the_plan.out}"
+        print(f"sdm_dolfinx {the_plan.spec.name}: pair {o['pair']}, {o['scheme']}, dt = {o['dt']}, T = {o['T']} "
+              f"({the_plan.steps} steps) on {comm.size} rank(s) {what}", flush=True)
+    try:
+        result = the_plan.run(comm, progress=progress, handle_signals=True,
+                              extra_info={"command": " ".join([PROG] + list(argv))})
+    except MeshError as e:              # raised on every rank, before anything is written
+        return say_error(prog, e, comm, 2)
+    except StepError as e:
+        return say_error(prog, f"{e}; outputs up to the last good step are in {the_plan.out}", comm, 1)
+    except CheckpointError as e:
+        return say_error(prog, e, comm, 2)
+    except SolverSetupError as e:       # nothing written yet; with -sdm_ options most likely theirs
+        user = any(a.startswith("-sdm_") for a in argv)
+        return say_error(prog, f"{e}" + ("; check the -sdm_ options" if user else ""), comm, 2 if user else 1)
+    except Interrupted as e:
+        if comm.rank == 0:
+            print(f"{prog}: {e}", file=sys.stderr, flush=True)
+        return 128 + int(e.signum)
+    if progress and comm.rank == 0:
+        i = result.info
+        print(f"done in {i['wall_time']:.1f} s: dim W = {i['dim_W']}, dim H = {i['dim_H']}, N_g = {i['N_g']}; "
+              f"energy {result.timeseries['energy'][0]:.6g} -> {result.timeseries['energy'][-1]:.6g}; "
+              f"wrote {the_plan.out}/timeseries.csv, run.json, solution.xdmf", flush=True)
+    return 0

@@ -1,0 +1,269 @@
+"""The Problem (what is solved) and its declaration (which parameters make one).
+
+A :class:`Problem` is data (a mesh, UFL forms, Dirichlet data, the constrained vertices and
+their bounds, initial conditions, a probe point). Nothing downstream knows which problem
+runs: the membrane of the paper's section 4 and the disc of section 5 are two Problems, and
+a user-defined problem is a third (``docs/add_a_problem.md``).
+
+A :class:`ProblemSpec` declares a family of Problems once: its parameters (:class:`Param`:
+default, unit, bounds, help) and a ``build(comm, **values)`` function. The command line's
+options, the TOML keys, ``run.json`` and the rebuilding of a finished run for
+post-processing all come from that declaration, for the built-in problems and a user's
+problem file alike.
+"""
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Optional
+
+from mpi4py import MPI
+
+import numpy as np
+
+
+@dataclass
+class Problem:
+    """A problem  M u'' + A u ∈ L − N_K(u)  in the sense of the paper's eq. (1)–(2).
+
+    Attributes:
+        name: short name, used in file names and ``run.json``.
+        mesh: a dolfinx mesh (already distributed).
+        shape: value shape of u: ``()`` for a scalar field, ``(gdim,)`` for a vector field.
+        a: ``a(u, w)`` -> UFL bilinear form (the operator A).
+        l: ``l(w)`` -> UFL linear form (the load L, gravity included).
+        rho: density: the mass forms are ``rho * u.w dx``.
+        u0: initial displacement, a callable ``x -> values`` for ``Function.interpolate``.
+        v0: initial velocity, same form.
+        constraint_vertices: ``mesh -> local vertex indices`` where K^h acts (eq. (13)).
+        lower_bound: ``x (3, n) -> (n,)`` the bound on the constrained displacement
+            component at vertices of coordinates x: u_c(a_i) >= lower_bound(a_i).
+        constraint_component: component of u that is bounded (None for scalar u).
+        constraint_measure: ``q -> UFL form`` of the P1 test function q; its value at a
+            vertex is that vertex's lumped measure, so stress = nodal multiplier / measure.
+        dirichlet_facets: ``mesh -> local facet indices`` with u = dirichlet_value, or None.
+        dirichlet_value: callable ``x -> values`` (constant in time).
+        probe: the point (x, y) where the displacement (and, at the nearest constrained
+            vertex, the contact stress) is recorded.
+        extra_columns: additional time-series columns among ``contact_force``,
+            ``momentum_y``, ``elastic`` (1/2 U^T A U).
+        parameters: physical parameters for ``run.json``; ``units`` their units.
+        momentum_component: for ``momentum_y``: the component index used.
+        args: the declared parameter values it was built from (set by
+            :meth:`ProblemSpec.problem`; empty for a Problem built by hand).
+        source: the problem file that declared it (None for a built-in problem).
+    """
+    name: str
+    mesh: object
+    shape: tuple
+    a: Callable
+    l: Callable
+    u0: Callable
+    v0: Callable
+    constraint_vertices: Callable
+    lower_bound: Callable
+    constraint_measure: Callable
+    rho: float = 1.0
+    constraint_component: Optional[int] = None
+    dirichlet_facets: Optional[Callable] = None
+    dirichlet_value: Optional[Callable] = None
+    probe: tuple = (0.0, 0.0)
+    extra_columns: tuple = ()
+    parameters: dict = field(default_factory=dict)
+    units: dict = field(default_factory=dict)
+    momentum_component: int = 1
+    args: dict = field(default_factory=dict)
+    source: Optional[str] = None
+
+    def describe(self):
+        """Parameters with their units, as written to ``run.json`` (``args`` and ``source``
+        are what :func:`sdm_dolfinx.problems.rebuild` needs)."""
+        d = {"name": self.name, "parameters": dict(self.parameters), "units": dict(self.units),
+             "probe": [float(c) for c in np.asarray(self.probe)]}
+        if self.args:
+            d["args"] = dict(self.args)
+        if self.source:
+            d["source"] = self.source
+        return d
+
+
+class ProblemInputError(ValueError):
+    """Parameter values a problem refuses (the message may join several, with '; ')."""
+
+
+#: the types a parameter may have; ``point`` is a tuple of floats (its length that of the default)
+PARAM_TYPES = (float, int, str, bool, Path, "point")
+
+
+@dataclass(frozen=True)
+class Param:
+    """One declared parameter of a problem.
+
+    Attributes:
+        name: the keyword of ``build`` (a Python identifier); the command-line option is
+            ``--name`` with ``_`` written ``-``, as is the TOML key.
+        default: the value when none is given (None: optional, e.g. a mesh file).
+        help: one line for ``--help``.
+        unit: the unit, for ``--help`` and ``run.json`` (``"-"`` for none).
+        type: one of :data:`PARAM_TYPES` (default: the default's type, float for None).
+        low, high: inclusive bounds of a number (None: unbounded); ``low_strict`` makes the
+            lower bound exclusive (``> low``).
+        choices: the allowed values of a string.
+        flag: the option of a bool whose default is True, e.g. ``"no-obstacle"`` for
+            ``with_obstacle``: giving the flag sets the value to False.
+        metavar: the placeholder(s) in ``--help``.
+    """
+    name: str
+    default: object
+    help: str
+    unit: str = "-"
+    type: object = None
+    low: Optional[float] = None
+    high: Optional[float] = None
+    low_strict: bool = False
+    choices: Optional[tuple] = None
+    flag: Optional[str] = None
+    metavar: object = None
+
+    @property
+    def kind(self):
+        if self.type is not None:
+            return self.type
+        if isinstance(self.default, bool):
+            return bool
+        if isinstance(self.default, tuple):
+            return "point"
+        return type(self.default) if self.default is not None else float
+
+    @property
+    def option(self):
+        """The command-line option (and TOML key) without dashes."""
+        return self.flag or self.name.replace("_", "-")
+
+    def check(self, value, label):
+        """Messages for ``value`` out of type or bounds (empty when it is fine)."""
+        kind = self.kind
+        if value is None:
+            return [] if self.default is None else [f"{label} needs a value"]
+        if kind is bool:
+            return [] if isinstance(value, (bool, np.bool_)) else [f"{label} must be true or false (got {value!r})"]
+        if kind in (str, Path):
+            if self.choices is not None and value not in self.choices:
+                return [f"{label} must be one of {', '.join(map(str, self.choices))} (got {value!r})"]
+            return []
+        if kind == "point":
+            vals = list(value) if isinstance(value, (tuple, list, np.ndarray)) else None
+            if vals is None or len(vals) != len(self.default) or not all(_finite(v) for v in vals):
+                return [f"{label} must be {len(self.default)} finite numbers (got {value!r})"]
+            return []
+        if kind is int and (isinstance(value, bool) or not float(value).is_integer()):
+            return [f"{label} must be an integer (got {value!r})"]
+        if not _finite(value):
+            return [f"{label} must be a finite number of magnitude <= 1e150 (got {value})"]
+        unit = f" {self.unit}" if self.unit not in ("-", "") else ""
+        if self.low is not None and (value <= self.low if self.low_strict else value < self.low):
+            return [f"{label} must be {'>' if self.low_strict else '>='} {_num(self.low)}{unit} (got {value})"]
+        if self.high is not None and value > self.high:
+            return [f"{label} must be <= {_num(self.high)}{unit} (got {value})"]
+        return []
+
+    def convert(self, value):
+        """``value`` in the declared type (after :meth:`check`)."""
+        if value is None:
+            return None
+        kind = self.kind
+        if kind == "point":
+            return tuple(float(v) for v in value)
+        if kind is Path:
+            return Path(value)
+        if kind is int:
+            return int(value)
+        if kind is float:
+            return float(value)
+        return value
+
+
+def _finite(v):
+    try:
+        return math.isfinite(float(v)) and abs(float(v)) <= 1e150   # squared in energies: stay finite
+    except (TypeError, ValueError):
+        return False
+
+
+def _num(x):
+    return f"{x:g}" if isinstance(x, float) else str(x)
+
+
+@dataclass
+class ProblemSpec:
+    """The declaration of a problem: its parameters once, and how to build it.
+
+    Attributes:
+        name: the problem's name (the command ``python -m sdm_dolfinx NAME``, ``run.json``).
+        build: ``build(comm, **values) -> Problem`` with every declared parameter given.
+        params: the :class:`Param` declarations, in the order of ``--help``.
+        doc: the description; its first line is the command's one-line help.
+        defaults: run defaults: ``pair``, ``scheme``, ``dt``, ``T`` and ``time_unit``.
+        check: ``check(values) -> [messages]`` for conditions between parameters (the
+            labels of :meth:`label`), beyond each parameter's own bounds.
+        source: the file that declared it (None for a built-in problem).
+    """
+    name: str
+    build: Callable
+    params: tuple
+    doc: str = ""
+    defaults: dict = field(default_factory=dict)
+    check: Optional[Callable] = None
+    source: Optional[str] = None
+
+    def param(self, name):
+        for p in self.params:
+            if p.name == name:
+                return p
+        raise KeyError(name)
+
+    def values(self, given=None, cli=False):
+        """Every declared parameter's value: the defaults, overridden by ``given``.
+
+        Raises:
+            ProblemInputError: an unknown name, or values out of type or bounds (every
+                message, joined with '; '); labels are ``--option`` when ``cli``.
+        """
+        given = dict(given or {})
+        names = [p.name for p in self.params]
+        unknown = [k for k in given if k not in names]
+        if unknown:
+            raise ProblemInputError(f"{self.name} has no parameter {', '.join(map(repr, unknown))}; "
+                                    f"its parameters: {', '.join(names)}")
+        errors, values = [], {}
+        for p in self.params:
+            v = given.get(p.name, p.default)
+            msgs = p.check(v, self.label(p.name, cli))
+            errors += msgs
+            values[p.name] = v if msgs else p.convert(v)
+        if not errors and self.check is not None:
+            errors += list(self.check(values, lambda n: self.label(n, cli)))
+        if errors:
+            raise ProblemInputError("; ".join(errors))
+        return values
+
+    def label(self, name, cli=False):
+        """How a parameter is named in messages: ``--option`` on the command line, else its name."""
+        return f"--{self.param(name).option}" if cli else name
+
+    def problem(self, comm=MPI.COMM_WORLD, **given):
+        """The Problem for these parameter values (the others at their defaults)."""
+        values = self.values(given)
+        prob = self.build(comm, **values)
+        # as run.json will hold them (lists, strings), so that a checkpoint's identity compares equal
+        prob.args = {k: (str(v) if isinstance(v, Path) else list(v) if isinstance(v, tuple) else v)
+                     for k, v in values.items()}
+        prob.source = self.source
+        return prob
+
+    def units(self):
+        return {p.name: p.unit for p in self.params}
+
+    @property
+    def summary(self):
+        """The first line of ``doc``."""
+        return (self.doc or self.name).strip().splitlines()[0]

@@ -1,0 +1,109 @@
+"""The one registry of problems: the built-in ones and those declared in a user's file.
+
+A problem file is a Python file defining ``PROBLEM = ProblemSpec(...)`` (see
+``docs/add_a_problem.md``); :func:`load_file` imports it and registers its problem, which
+then has every command the built-in problems have (``python -m sdm_dolfinx run
+--problem-file FILE``). A run records the file's path in ``run.json`` so that ``--restart``,
+``energy`` and the pictures find the declaration again.
+"""
+import importlib.util
+import sys
+from pathlib import Path
+
+from mpi4py import MPI
+
+from sdm_dolfinx.problems.base import ProblemInputError, ProblemSpec
+
+_REGISTRY = {}
+
+
+def register(spec):
+    """Add ``spec`` to the registry (a file's problem may replace one from the same file)."""
+    if not isinstance(spec, ProblemSpec):
+        raise TypeError(f"register() takes a ProblemSpec, got {type(spec).__name__}")
+    old = _REGISTRY.get(spec.name)
+    if old is not None and old.source != spec.source:
+        where = old.source or "sdm_dolfinx (built in)"
+        raise ProblemInputError(f"a problem called {spec.name!r} is already registered (from {where}); "
+                                f"choose another name")
+    _REGISTRY[spec.name] = spec
+    return spec
+
+
+def names(builtin=False):
+    """The registered problems' names (built-in ones first; ``builtin``: only those)."""
+    return [n for n, s in _REGISTRY.items() if not (builtin and s.source)]
+
+
+def get(name):
+    """The registered problem ``name``; ProblemInputError listing the choices otherwise."""
+    try:
+        return _REGISTRY[name]
+    except KeyError:
+        raise ProblemInputError(f"unknown problem {name!r}; registered: {', '.join(_REGISTRY)} "
+                                f"(a problem of your own: --problem-file FILE)") from None
+
+
+def load_file(path):
+    """Import the problem file ``path`` and register its ``PROBLEM``; returns the spec.
+
+    Raises:
+        ProblemInputError: no such file, not Python, an error while importing it, or no
+            ``PROBLEM = ProblemSpec(...)`` in it (one line each).
+    """
+    path = Path(path).expanduser().resolve()
+    source = str(path)
+    for spec in _REGISTRY.values():
+        if spec.source == source:
+            return spec
+    if not path.is_file():
+        raise ProblemInputError(f"problem file {path}: no such file")
+    if path.suffix != ".py":
+        raise ProblemInputError(f"problem file {path}: not a Python file (.py)")
+    modname = f"sdm_dolfinx_problem_file_{len(_REGISTRY)}_{path.stem}"
+    mod_spec = importlib.util.spec_from_file_location(modname, path)
+    module = importlib.util.module_from_spec(mod_spec)
+    sys.modules[modname] = module
+    try:
+        mod_spec.loader.exec_module(module)
+    except Exception as e:          # the user's code: any error is reported in one line
+        sys.modules.pop(modname, None)
+        raise ProblemInputError(f"problem file {path}: {type(e).__name__}: {e}") from None
+    spec = getattr(module, "PROBLEM", None)
+    if not isinstance(spec, ProblemSpec):
+        raise ProblemInputError(f"problem file {path}: defines no PROBLEM = ProblemSpec(...) "
+                                f"(see docs/add_a_problem.md)")
+    spec.source = source
+    return register(spec)
+
+
+def resolve(problem):
+    """A ProblemSpec from a spec, a registered name or the path of a problem file (``.py``)."""
+    if isinstance(problem, ProblemSpec):
+        return problem
+    if str(problem).endswith(".py"):
+        return load_file(problem)
+    return get(str(problem))
+
+
+def spec_of_run(described):
+    """The spec that built a run, from its ``run.json`` ``problem`` entry (name, source)."""
+    source = described.get("source")
+    if source:
+        return load_file(source)
+    return get(described["name"])
+
+
+def rebuild(described, comm=MPI.COMM_WORLD):
+    """The Problem of a finished run, from its ``run.json`` ``problem`` entry.
+
+    Raises:
+        ProblemInputError: the run's problem is not declared (built by hand through the
+            API, no ``args`` recorded) or its declaration cannot be found.
+    """
+    if "args" not in described:
+        raise ProblemInputError(f"the run's problem {described.get('name')!r} was built without a declaration "
+                                f"(no 'args' in run.json): declare it with a ProblemSpec to post-process it "
+                                f"(docs/add_a_problem.md)")
+    spec = spec_of_run(described)
+    return spec.problem(comm, **described["args"])

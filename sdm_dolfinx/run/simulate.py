@@ -1,0 +1,216 @@
+"""The time loop: Problem + Pair + scheme -> time series (and files, if asked).
+
+:func:`simulate` is the loop; the pieces it drives live beside it: the integrator (one
+step), :class:`~sdm_dolfinx.run.result.TimeSeries` (one row per step),
+:class:`~sdm_dolfinx.run.outputs.RunFiles` (the folder), :mod:`.restart` (checkpoints) and
+:mod:`.signals` (stopping cleanly).
+"""
+import time
+import uuid
+
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import numpy as np
+
+from sdm_dolfinx import compat
+from sdm_dolfinx.method.discretisation import Discretisation
+from sdm_dolfinx.method.integrator import Integrator, StepError
+from sdm_dolfinx.run import checkpoint, restart as _restart
+from sdm_dolfinx.run.observers import ConstraintProbe, PointProbe
+from sdm_dolfinx.run.outputs import RunFiles
+from sdm_dolfinx.run.result import Result, TimeSeries, num_steps
+from sdm_dolfinx.run.signals import Interrupted, StopFlag
+
+
+class SolverSetupError(RuntimeError):
+    """The step solver could not be set up (nothing was written)."""
+
+
+def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=None, vi_solver="ssn",
+             linear="auto", out=None, write_every=None, progress=False, petsc_options=None,
+             extra_info=None, checkpoint_every=None, restart=False, handle_signals=False, on_step=None,
+             constraint_tol=1e-8):
+    """Run ``problem`` with ``pair`` and ``scheme`` from t = 0 to T.
+
+    Args:
+        problem: a :class:`sdm_dolfinx.problems.Problem`.
+        pair: pair name (see :data:`sdm_dolfinx.method.pairs.PAIRS`).
+        scheme: a registered time scheme (:mod:`sdm_dolfinx.method.schemes`).
+        dt, T: time step and final time.
+        mass: C treatment (``None``: the pair's default).
+        vi_solver, linear, petsc_options: the step solver (see :mod:`sdm_dolfinx.solvers`).
+        out: output folder (``timeseries.csv``, ``run.json``, ``solution.xdmf``) or None.
+        write_every: XDMF output every K steps (default 10 when ``out`` is given).
+        progress: print a progress line (rank 0) every few seconds.
+        checkpoint_every: write ``out/checkpoint.npz`` every K steps (and at the end).
+        restart: continue the run in ``out`` from its checkpoint (same parameters and ranks).
+        handle_signals: on SIGINT/SIGTERM stop after the current step, checkpoint, raise
+            :class:`Interrupted`.
+        on_step: ``f(step, row)`` called after every step with the time-series row (plus
+            ``linear_its_total``, the cumulative linear iterations); returning True requests
+            a stop (as a signal would).
+        constraint_tol: a constrained iterate below its bound by more than this (relative
+            to the largest |bound|, or absolute when the bounds are 0) stops the run.
+
+    Returns:
+        :class:`Result`.
+
+    Raises:
+        StepError: a step failed (the outputs up to the last good step stay readable).
+        Interrupted: a stop was requested; a checkpoint was written first.
+        checkpoint.CheckpointError: ``restart`` without a matching checkpoint.
+    """
+    wall0 = time.perf_counter()
+    run_options = {"pair": pair if isinstance(pair, str) else pair.name, "scheme": scheme, "dt": dt, "T": T,
+                   "mass": mass, "vi_solver": vi_solver, "linear": linear, "write_every": write_every,
+                   "checkpoint_every": checkpoint_every}
+    loop = _Loop(problem, pair, scheme, dt, T, mass, vi_solver, linear, petsc_options, wall0)
+    loop.open(out, restart, write_every, {"run_options": run_options, **(extra_info or {})})
+    loop.run(progress, on_step, checkpoint_every, handle_signals, constraint_tol)
+    return loop.finish()
+
+
+class _Loop:
+    """The state of one run between :func:`simulate`'s phases (set-up, files, steps, end)."""
+
+    def __init__(self, problem, pair, scheme, dt, T, mass, vi_solver, linear, petsc_options, wall0):
+        self.wall0, self.dt, self.comm = wall0, dt, problem.mesh.comm
+        self.disc = d = Discretisation(problem, pair, mass)
+        try:
+            self.integ = Integrator(d, scheme, dt, vi_solver, linear, petsc_options)
+        except PETSc.Error as e:            # e.g. a -sdm_ option PETSc does not accept
+            raise SolverSetupError(f"PETSc could not set up the step solver: {_petsc_message(e)}") from None
+        self.nsteps = num_steps(T, dt)
+        self.setup_time = time.perf_counter() - wall0
+        U, V = d.initial_state()
+        self.U, self.V = U, self.integ.initial_velocity(V)
+        self.cprobe = ConstraintProbe(d, problem.probe)
+        probe = PointProbe(d.W, problem.probe, problem.constraint_component)
+        self.series = TimeSeries(self.integ, problem, probe, self.cprobe, self.nsteps)
+        self.gap_imposed, self.gap_end = np.zeros(self.nsteps), np.zeros(self.nsteps)
+        self.lam = np.zeros(len(d.cdofs))
+        self.fingerprint = checkpoint.mesh_fingerprint(problem.mesh)
+        self.identity = {"problem": problem.describe(), "pair": d.pair.name, "mass": d.mass, "scheme": scheme,
+                         "dt": dt, "vi_solver": vi_solver, "linear": linear, "ranks": self.comm.size,
+                         "mesh": self.fingerprint}
+        self.fields_of = {"U": (d.W, self.U), "V": (d.H if self.integ.block else d.W, self.V)}
+
+    def open(self, out, restart, write_every, extra_info):
+        """run.json's first version, the restart (if any) and the files (if ``out``)."""
+        d, integ = self.disc, self.integ
+        self.info = {**self.identity, "T": self.nsteps * self.dt, "steps": self.nsteps, **d.dims(),
+                     "versions": compat.versions(), "displacement_reported": "U^{n+1} (end of step)",
+                     "constraint_imposed_on": integ.time_scheme.constrained,
+                     "lambda_probe": {"vertex": self.cprobe.vertex[:2].tolist(),
+                                      "definition": "nodal multiplier / lumped nodal measure (>= 0: obstacle pushes)"},
+                     "status": "running", **extra_info}
+        self.out, self.restarted, self.first = out, bool(restart), 0
+        if restart:
+            self.first, self.run_id, outputs = _restart.resume(out, self.identity, self.fields_of, integ,
+                                                               self.nsteps, self.comm)
+            self.info["restarted_from_step"] = self.first
+        else:
+            self.run_id = self.comm.bcast(uuid.uuid4().hex if self.comm.rank == 0 else None, root=0)
+        self.info["run_id"] = self.run_id
+        self.files = None
+        if out is not None:
+            self.files = RunFiles(out, integ, self.series, self.info, self.fingerprint,
+                                  (self.first, outputs) if restart else None, write_every, self.dt)
+
+    def record(self, n, its, n_active):
+        row = self.series.record(n, n * self.dt, self.U, self.V, self.lam, its, n_active)
+        if self.files is not None:
+            self.files.row(row)
+        return row
+
+    def run(self, progress, on_step, checkpoint_every, handle_signals, constraint_tol):
+        """Steps first..nsteps; a failed step leaves the files at the last good step."""
+        files, stop, n = self.files, StopFlag(handle_signals), self.first
+        scale = max(self.comm.allreduce(float(np.max(np.abs(self.disc.lb), initial=0.0)), op=MPI.MAX), 1.0)
+        saved = None
+        try:
+            if not self.restarted:
+                self.record(0, 0, 0)
+                if files is not None:
+                    files.fields(0, self.U, self.V, self.lam)
+            elif files is not None and files.state_missing:
+                files.state.write(self.U, self.V, self.first, self.first * self.dt)  # a new state.h5 starts here
+            last_print = time.perf_counter()
+            for n in range(self.first, self.nsteps):
+                # the state before each step, so that a failed run's files end with its last good step
+                saved = (self.U.array.copy(), self.V.array.copy(), self.lam) if files is not None else None
+                row = self.step(n, scale * constraint_tol)
+                if progress and self.comm.rank == 0 and (time.perf_counter() - last_print > 5 or n + 1 == self.nsteps):
+                    last_print = time.perf_counter()
+                    print(f"  step {n + 1}/{self.nsteps}  t = {(n + 1) * self.dt:.4g}  energy = {row['energy']:.6g}  "
+                          f"active = {row['n_active']}  newton = {row['newton_its']}  "
+                          f"[{last_print - self.wall0:.1f} s]", flush=True)
+                requested = bool(on_step(n + 1, row)) if on_step is not None else False
+                signum = stop.agreed(self.comm, requested)
+                if files is not None and checkpoint_every and ((n + 1) % checkpoint_every == 0
+                                                               or n + 1 == self.nsteps or signum):
+                    self.checkpoint(n + 1)
+                if signum and n + 1 < self.nsteps:
+                    self.interrupted(n + 1, signum, checkpointed=bool(checkpoint_every))
+        except StepError as e:
+            self.failed(n, e, saved)
+            raise
+        finally:
+            stop.restore()
+            if files is not None:
+                files.close()
+
+    def step(self, n, tol):
+        """Step n -> n + 1: solve, check the constraint, record (and write the fields if due)."""
+        info = self.integ.step(self.U, self.V, n, n * self.dt)
+        self.lam = self.integ.lam.copy()
+        self.gap_imposed[n], self.gap_end[n] = info["gap_imposed"], info["gap_end"]
+        if self.gap_imposed[n] < -tol:
+            raise StepError(f"step {n + 1} (t = {(n + 1) * self.dt:.6g}): the constraint is violated by "
+                            f"{-self.gap_imposed[n]:.3e} on the constrained iterate")
+        row = self.record(n + 1, info["its"], info["n_active"])
+        if self.files is not None and self.files.due(n + 1, self.nsteps):
+            self.files.fields(n + 1, self.U, self.V, self.lam)
+        return row
+
+    def checkpoint(self, n):
+        _restart.save(self.out, self.identity, n, self.dt, self.run_id, self.fields_of, self.integ, self.comm)
+
+    def interrupted(self, n, signum, checkpointed):
+        msg = f"interrupted after step {n} (t = {n * self.dt:.6g})"
+        self.info.update(status="interrupted", interrupted_at_step=n, wall_time=time.perf_counter() - self.wall0)
+        if self.files is not None:
+            if not checkpointed:
+                self.checkpoint(n)
+            msg += f"; checkpoint written, continue with --restart {self.out}"
+            self.files.update()
+        raise Interrupted(msg, signum)
+
+    def failed(self, n, error, saved):
+        """Step n was the last good one: run.json says so, and its fields are written unless they are."""
+        self.info.update(status="failed", error=str(error), wall_time=time.perf_counter() - self.wall0)
+        if self.files is None:
+            return
+        if saved is not None and n > self.first and n % self.files.write_every:
+            self.U.array[:], self.V.array[:] = saved[0], saved[1]
+            self.files.fields(n, self.U, self.V, saved[2])
+        self.files.update(last_good_step=n)
+
+    def finish(self):
+        gi, ge = self.gap_imposed[self.first:], self.gap_end[self.first:]
+        self.info.update(status="finished", wall_time=time.perf_counter() - self.wall0, setup_time=self.setup_time,
+                         newton_its_total=int(self.series.data["newton_its"].sum()),
+                         linear_its_total=int(self.integ.linear_its),
+                         min_gap_imposed=float(gi.min(initial=np.inf)), min_gap_end=float(ge.min(initial=np.inf)))
+        if self.files is not None:
+            self.files.update()
+        self.integ.destroy()
+        return Result(self.series.data, self.info, self.gap_imposed, self.gap_end, self.U, self.V, self.disc)
+
+
+def _petsc_message(e):
+    """The informative line of a PETSc error (its last non-empty line) and its code."""
+    lines = [ln.split("] ", 1)[-1].strip() for ln in str(e).splitlines() if ln.strip()]
+    return f"{lines[-1] if lines else 'unknown error'} (PETSc error {getattr(e, 'ierr', '?')})"
+

@@ -1,0 +1,201 @@
+"""The linear systems of the semi-smooth Newton: K restricted to the inactive set.
+
+A Newton step with active set A solves x_A = lb_A, (K x - b)_I = 0. :data:`LINEAR_STRATEGIES`
+are the ways to solve it (see :class:`~sdm_dolfinx.solvers.semismooth.SemismoothNewton`);
+:class:`InactiveSetSolver` does all but the dense Schur complement
+(:mod:`sdm_dolfinx.solvers.schur`), which falls back to it for large active sets.
+"""
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import numpy as np
+
+from sdm_dolfinx.solvers.base import VIError
+from sdm_dolfinx.solvers.factorisation import mumps_margins
+from sdm_dolfinx.solvers.options import ksp_reason_name
+
+#: linear strategies of the semi-smooth Newton (see :class:`~sdm_dolfinx.solvers.semismooth.SemismoothNewton`)
+LINEAR_STRATEGIES = ("auto", "schur", "cg-factor", "lu", "amg", "cg-amg")
+
+#: ``auto`` takes ``schur`` up to this many constrained dofs, ``amg`` beyond: many
+#: constraints (the membrane, N_g ~ N^2) mean active sets of thousands in the impact phase,
+#: where CG + BoomerAMG scales best (bench/README.md)
+SCHUR_MAX_CONSTRAINTS = 10000
+
+#: the strategies that run a Krylov method on :class:`ReducedOperator` with :class:`ReducedPC`
+SHELL_STRATEGIES = ("cg-factor", "cg-amg", "schur")
+
+
+def choose_strategy(num_constraints, spd):
+    """What ``linear="auto"`` means: ``schur``, or ``amg`` for many constraints (SPD only)."""
+    return "schur" if num_constraints <= SCHUR_MAX_CONSTRAINTS or not spd else "amg"
+
+
+class ReducedOperator:
+    """y = K_A x: K with the active rows and columns replaced by the identity."""
+
+    def __init__(self, K, active_mask):
+        self.K, self.mask = K, active_mask
+        self.tmp = K.createVecRight()
+
+    def mult(self, mat, x, y):
+        xa = x.getArray(readonly=True)
+        self.tmp.array[:] = xa
+        self.tmp.array[self.mask] = 0.0
+        self.K.mult(self.tmp, y)
+        y.array[self.mask] = xa[self.mask]
+
+
+class ReducedPC:
+    """z = P restricted to the inactive set (identity on the active set), P ~ K^-1.
+
+    With P = K^-1 (one factorisation) this differs from (K_A)^-1 by a term of rank
+    |active|, so Krylov converges in at most |active| + 1 iterations; with P one AMG cycle
+    on K, the AMG set-up is done once per run.
+    """
+
+    def __init__(self, apply_P, active_mask, K):
+        self.apply_P, self.mask = apply_P, active_mask
+        self.tmp, self.z = K.createVecRight(), K.createVecLeft()
+
+    def apply(self, pc, r, z):
+        ra = r.getArray(readonly=True)
+        self.tmp.array[:] = ra
+        self.tmp.array[self.mask] = 0.0
+        self.apply_P(self.tmp, self.z)
+        z.array[:] = self.z.array_r
+        z.array[self.mask] = ra[self.mask]
+
+
+class InactiveSetSolver:
+    """Newton systems x_A = lb_A, (K x - b)_I = 0 by a KSP (prefix ``prefix``).
+
+    Args:
+        K: the step matrix; cdofs, lb: the constrained entries and their bounds.
+        spd: K is SPD -> CG; otherwise GMRES (or LU instead of Cholesky).
+        linear: ``cg-factor``, ``schur`` (its Krylov fallback) or ``cg-amg``: CG / GMRES on
+            :class:`ReducedOperator` preconditioned by :class:`ReducedPC` with ``fac`` or one
+            BoomerAMG set-up of K; ``lu``: a MUMPS factorisation of the reduced matrix at
+            every iteration; ``amg``: CG + BoomerAMG on the reduced matrix, set up again
+            when the active set changed.
+        fac: the :class:`~sdm_dolfinx.solvers.factorisation.Factorisation` of K
+            (``schur``, ``cg-factor``).
+
+    Build it inside the solver's options scope (it calls setFromOptions). ``its`` counts the
+    linear iterations.
+    """
+
+    def __init__(self, K, cdofs, lb, spd, linear, prefix, fac=None):
+        self.K, self.cdofs, self.lb, self.spd, self.linear, self.prefix = K, cdofs, lb, spd, linear, prefix
+        self.comm = K.getComm().tompi4py()
+        self.fac = fac
+        self.mask = np.zeros(K.getLocalSize()[0], dtype=bool)     # active entries of x
+        self.its = 0
+        self._KA = self._KA_mask = None
+        self.op = self.ksp_amg = None
+        n, N = K.getLocalSize()[0], K.getSize()[0]
+        ksp = PETSc.KSP().create(self.comm)
+        ksp.setOptionsPrefix(self.prefix)
+        ksp.setTolerances(rtol=1e-12, atol=1e-50, max_it=5000)
+        if self.linear in SHELL_STRATEGIES:
+            if self.linear in ("cg-factor", "schur"):
+                apply_P = self.fac.solve
+            else:
+                apply_P = self._amg_preconditioner().solve
+            op = PETSc.Mat().createPython([(n, N), (n, N)], ReducedOperator(K, self.mask), comm=self.comm)
+            op.setUp()
+            self.op = op
+            ksp.setOperators(op)
+            ksp.setType("cg" if self.spd else "gmres")
+            if not self.spd:
+                ksp.setGMRESRestart(300)
+            pc = ksp.getPC()
+            pc.setType("python")
+            pc.setPythonContext(ReducedPC(apply_P, self.mask, K))
+        elif self.linear == "lu":
+            ksp.setType("preonly")
+            ksp.getPC().setType("cholesky" if self.spd else "lu")
+            ksp.getPC().setFactorSolverType("mumps")
+        else:
+            ksp.setType("cg" if self.spd else "gmres")
+            ksp.getPC().setType("hypre")
+            ksp.getPC().setHYPREType("boomeramg")
+        ksp.setFromOptions()
+        self.ksp = ksp
+
+    def _amg_preconditioner(self):
+        """One BoomerAMG set-up of K for the whole run (``cg-amg``; prefix ``<prefix>amg_``)."""
+        ka = PETSc.KSP().create(self.comm)
+        ka.setOptionsPrefix(self.prefix + "amg_")
+        ka.setOperators(self.K)
+        ka.setType("preonly")
+        ka.getPC().setType("hypre")
+        ka.getPC().setHYPREType("boomeramg")
+        ka.setFromOptions()
+        ka.setUp()
+        self.ksp_amg = ka
+        return ka
+
+    def _reduced_matrix(self):
+        rows = self.K.getOwnershipRange()[0] + np.flatnonzero(self.mask).astype(np.int32)
+        KA = self.K.copy()
+        KA.zeroRowsColumns(rows, 1.0)
+        return KA
+
+    def _linear_solve(self, rhs, x):
+        shell = self.linear in SHELL_STRATEGIES
+        if shell:
+            self.op.assemble()
+        elif self.linear == "lu" or self._KA is None or self.comm.allreduce(
+                not np.array_equal(self.mask, self._KA_mask), op=MPI.LOR):
+            # lu: refactorise at every iteration (the baseline); amg: set up again only when
+            # the active set changed on some rank (never in the free phase)
+            if self._KA is not None:
+                self._KA.destroy()
+            self._KA, self._KA_mask = self._reduced_matrix(), self.mask.copy()
+            self.ksp.setOperators(self._KA)
+        if self.linear == "lu":     # MUMPS reads its options at each factorisation
+            for _, _, margin in mumps_margins(self.prefix):   # as in factorise
+                with margin:
+                    self.ksp.solve(rhs, x)
+                if self.ksp.getConvergedReason() != PETSc.KSP.ConvergedReason.DIVERGED_PCSETUP_FAILED:
+                    break
+                self.ksp.getPC().reset()
+                self.ksp.setOperators(self._KA)
+        else:
+            self.ksp.solve(rhs, x)
+        reason = self.ksp.getConvergedReason()
+        self.its += max(self.ksp.getIterationNumber(), 1)
+        if reason <= 0:
+            raise VIError(f"linear solve on the inactive set failed (KSP reason {reason}: "
+                          f"{ksp_reason_name(reason)})")
+
+    def solve(self, b, x, active, work):
+        """Solve x_A = lb_A, (K x - b)_I = 0; return (x at the constraints, multipliers).
+
+        ``work``: three vectors of K's layout (right-hand side, residual, x_A)."""
+        c, lb = self.cdofs, self.lb
+        rhs, res, xa = work
+        self.mask[:] = False
+        self.mask[c[active]] = True
+        # the operator zeroes the active columns: move K_{:,A} lb_A to the right-hand side
+        xa.set(0.0)
+        xa.array[c[active]] = lb[active]
+        self.K.mult(xa, rhs)
+        rhs.aypx(-1.0, b)
+        rhs.array[c[active]] = lb[active]
+        x.array[c[active]] = lb[active]
+        self._linear_solve(rhs, x)
+        # multipliers lam = (K x - b) on the active set
+        self.K.mult(x, res)
+        res.axpy(-1.0, b)
+        return x.array[c].copy(), res.array[c].copy()
+
+    def destroy(self):
+        self.ksp.destroy()
+        if self._KA is not None:
+            self._KA.destroy()
+        if self.op is not None:
+            self.op.destroy()
+        if self.ksp_amg is not None:
+            self.ksp_amg.destroy()

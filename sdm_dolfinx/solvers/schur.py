@@ -1,0 +1,129 @@
+"""The ``schur`` linear strategy: Newton systems on the active set by a small dense Schur
+complement built from cached columns of K^-1.
+
+K is factorised once per run (:class:`~sdm_dolfinx.solvers.factorisation.Factorisation`).
+With x0 = K^-1 b (one solve per step) and Z = K^-1 E_A the columns of the active
+constraints (each computed once per run and cached), a Newton system x_A = lb_A,
+(K x - b)_I = 0 is x = x0 + Z mu with mu from the dense |A| x |A| system
+(E_A^T Z) mu = lb_A - x0_A; mu is the multiplier. The Newton iterations are then dense
+work only; large active sets fall back to Krylov (:mod:`sdm_dolfinx.solvers.active_set`).
+"""
+from mpi4py import MPI
+
+import numpy as np
+
+#: ``schur`` solves a Newton system by the dense Schur complement while |active| is at most
+#: this and at most SCHUR_MAX_COLUMNS columns are cached; otherwise by CG (GMRES) on the
+#: inactive set preconditioned by the same factorisation (``cg-factor``)
+SCHUR_MAX_ACTIVE = 100
+SCHUR_MAX_COLUMNS = 1000
+
+#: full cached columns K^-1 e_i are kept while they take less than this per rank (bytes);
+#: beyond, each step ends with one more solve instead of a product with the columns
+SCHUR_COLUMN_MEMORY = 2 * 1024 ** 3
+
+
+class SchurComplement:
+    """The Newton systems of one step by the cached columns K^-1 e_i (see the module).
+
+    Args:
+        K: the step matrix.
+        cdofs: owned local indices of the constrained entries of x.
+        lb: their lower bounds.
+        fac: the factorisation of K.
+
+    ``its`` counts the solves with the factorisation (one per column, one per step).
+    """
+
+    def __init__(self, K, cdofs, lb, fac):
+        self.K, self.cdofs, self.lb, self.fac = K, cdofs, lb, fac
+        self.comm = K.getComm().tompi4py()
+        self.its = 0
+        self.gc = (self.K.getOwnershipRange()[0] + self.cdofs).astype(np.int64)   # global ids
+        self._slot = {}                                   # global id -> column slot
+        self._Zc = np.zeros((len(self.cdofs), 0))         # cached columns at the constraints
+        self._Zf = np.zeros((self.K.getLocalSize()[0], 0))   # ... and in full (if they fit)
+        self._full = True
+        self._ncols = 0
+        self._x0 = self.K.createVecRight()
+        self._rhs = self.K.createVecLeft()
+
+    def start(self, b):
+        """x0 = K^-1 b, once per step; the iterations reuse it."""
+        self.fac.solve(b, self._x0)
+        self.its += 1
+        self._x0c = self._x0.array_r[self.cdofs].copy()
+
+    def _ensure_columns(self, gids):
+        """Compute and cache K^-1 e_g for the ids not cached yet (collective, same list)."""
+        missing = [g for g in gids if g not in self._slot]
+        if not missing:
+            return
+        cols = self.fac.solve_columns(missing)
+        self.its += len(missing)
+        k = len(missing)
+        need = self._ncols + k
+        if need > self._Zc.shape[1]:
+            cap = max(need, 2 * self._Zc.shape[1], 16)
+            Zc = np.zeros((self._Zc.shape[0], cap))
+            Zc[:, :self._ncols] = self._Zc[:, :self._ncols]
+            self._Zc = Zc
+            full_ok = self.comm.allreduce(self._Zf.shape[0] * cap * 8 <= SCHUR_COLUMN_MEMORY, op=MPI.LAND)
+            if self._full and full_ok:
+                Zf = np.zeros((self._Zf.shape[0], cap))
+                Zf[:, :self._ncols] = self._Zf[:, :self._ncols]
+                self._Zf = Zf
+            else:
+                self._full, self._Zf = False, None
+        self._Zc[:, self._ncols:need] = cols[self.cdofs, :]
+        if self._full:
+            self._Zf[:, self._ncols:need] = cols
+        for j, g in enumerate(missing):
+            self._slot[g] = self._ncols + j
+        self._ncols = need
+
+    def system(self, active):
+        """x_c and the multipliers for active set ``active`` from the cached columns, or None
+        when the active set is too large (then Krylov on the inactive set instead).
+
+        With x = x0 + Z mu (x0 = K^-1 b, Z = K^-1 E_A), K x - b = E_A mu: mu is the
+        multiplier, and x_A = lb_A is the dense SPD system (Z_AA) mu = lb_A - x0_A (Z_AA is
+        the constrained block of K^-1; of its Schur complement for the block formulation).
+        """
+        comm = self.comm
+        la = self.gc[active]
+        parts = comm.allgather(la)
+        gA = np.concatenate(parts) if parts else la
+        new = sum(1 for g in gA.tolist() if g not in self._slot)
+        if len(gA) > SCHUR_MAX_ACTIVE or self._ncols + new > SCHUR_MAX_COLUMNS:
+            return None                                    # too large: Krylov instead
+        self._ensure_columns(gA.tolist())
+        slots = np.array([self._slot[g] for g in gA.tolist()], dtype=np.int64)
+        rows = np.flatnonzero(active)
+        S_loc = self._Zc[np.ix_(rows, slots)]
+        r_loc = self.lb[active] - self._x0c[active]
+        S = np.vstack(comm.allgather(S_loc)) if len(gA) else np.zeros((0, 0))
+        r = np.concatenate(comm.allgather(r_loc))
+        mu = np.linalg.solve(S, r) if len(gA) else np.zeros(0)
+        xc = self._x0c + self._Zc[:, slots] @ mu
+        off = sum(len(p) for p in parts[:comm.rank])
+        lam = np.zeros(len(self.cdofs))
+        lam[rows] = mu[off:off + len(rows)]
+        self._mu, self._slots, self._mu_local = mu, slots, mu[off:off + len(rows)]
+        return xc, lam
+
+    def finish(self, b, x, active):
+        """The full x of the accepted active set (the last :meth:`system`)."""
+        c = self.cdofs
+        if self._full:
+            x.array[:] = self._x0.array_r + self._Zf[:, self._slots] @ self._mu
+        else:           # one more solve: K x = b + E_A mu
+            b.copy(self._rhs)
+            self._rhs.array[c[active]] += self._mu_local
+            self.fac.solve(self._rhs, x)
+            self.its += 1
+        x.array[c[active]] = self.lb[active]
+
+    def destroy(self):
+        self._x0.destroy()
+        self._rhs.destroy()

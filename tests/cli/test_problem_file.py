@@ -1,0 +1,95 @@
+"""A user's problem file is first-class: the block of docs/add_a_problem.md, copied from the
+page itself, goes through every command the membrane and the disc have (run, TOML, restart,
+energy, inspect, render), on 1 and 2 ranks."""
+import json
+import re
+from pathlib import Path
+
+from mpi4py import MPI
+
+import numpy as np
+import pytest
+
+from sdm_dolfinx import cli
+from sdm_dolfinx.run import Interrupted, launch
+
+COMM = MPI.COMM_WORLD
+DOC = Path(__file__).resolve().parents[2] / "docs" / "add_a_problem.md"
+SMALL = ["--n", "4", "--dt", "4e-5", "--T", "2.4e-3", "--quiet"]
+
+
+def block_file(folder):
+    """docs/add_a_problem.md's my_block.py, written into ``folder`` (rank 0) and shared."""
+    path = folder / "my_block.py"
+    if COMM.rank == 0:
+        text = DOC.read_text()
+        code = re.search(r"Save as `my_block.py`.*?```python\n(.*?)```", text, re.S).group(1)
+        path.write_text(code)
+    COMM.Barrier()
+    return path
+
+
+def series(folder):
+    text = (folder / "timeseries.csv").read_text() if COMM.rank == 0 else None
+    text = COMM.bcast(text, root=0)
+    return np.genfromtxt(text.splitlines(), delimiter=",", names=True)
+
+
+def test_problem_file_round_trip(mpi_tmp_path, capsys):
+    f = block_file(mpi_tmp_path)
+    ref, cut, cfg_out = mpi_tmp_path / "ref", mpi_tmp_path / "cut", mpi_tmp_path / "cfg"
+    # run from the command line, with the declared options
+    assert cli.main(["run", "--problem-file", str(f), *SMALL, "--out", str(ref)]) == 0
+    a = series(ref)
+    assert a["n_active"].max() > 0                                  # it reached the floor
+    info = json.loads((ref / "run.json").read_text()) if COMM.rank == 0 else None
+    info = COMM.bcast(info, root=0)
+    assert info["problem"]["name"] == "block" and info["problem"]["source"] == str(f.resolve())
+    assert info["problem"]["args"]["n"] == 4 and info["pair"] == "P2/P1"    # the file's default pair
+    # bad values of its declared parameters: one line, exit 2, nothing written
+    capsys.readouterr()
+    assert cli.main(["run", "--problem-file", str(f), "--nu", "0.5", "--out", str(mpi_tmp_path / "bad")]) == 2
+    err = capsys.readouterr().err
+    if COMM.rank == 0:
+        assert "--nu must be <= 0.49" in err and len(err.strip().splitlines()) == 1
+    assert not (mpi_tmp_path / "bad").exists()
+    # interrupted through the API after step 20, continued from the command line
+    with pytest.raises(Interrupted):
+        launch(f, {"n": 4}, out=cut, dt=4e-5, T=2.4e-3, on_step=lambda n, row: n == 20)
+    assert cli.main(["run", "--restart", str(cut), "--quiet"]) == 0
+    b = series(cut)
+    assert len(b) == len(a) == 61
+    # the restart continues the run: the same history (round-off of the restored active set)
+    for col in ("energy", "u_probe", "contact_force", "momentum_y"):
+        scale = np.abs(a[col]).max()
+        assert np.allclose(a[col], b[col], rtol=0, atol=1e-9 * scale), col
+    # a TOML file naming the problem file
+    if COMM.rank == 0:
+        (mpi_tmp_path / "block.toml").write_text(f'problem-file = "{f}"\nn = 4\ndt = 4e-5\nT = 4e-4\n')
+    COMM.Barrier()
+    assert cli.main(["run", "--config", str(mpi_tmp_path / "block.toml"), "--quiet", "--out", str(cfg_out)]) == 0
+    assert len(series(cfg_out)) == 11
+    # energy from state.h5 through the registry (the declaration is found from run.json)
+    assert cli.main(["energy", str(ref)]) == 0
+    # inspect on the file's problem
+    assert cli.main(["inspect", "--problem-file", str(f), "--n", "2", "--pair", "P2/P1"]) == 0
+
+
+def test_problem_file_errors_are_one_line(mpi_tmp_path, capsys):
+    bad = mpi_tmp_path / "broken.py"
+    none = mpi_tmp_path / "nothing.py"
+    if COMM.rank == 0:
+        bad.write_text("raise RuntimeError('oops')\n")
+        none.write_text("x = 1\n")
+    COMM.Barrier()
+    for argv, message in ((["run", "--problem-file", str(bad)], "RuntimeError: oops"),
+                          (["run", "--problem-file", str(none)], "defines no PROBLEM"),
+                          (["run", "--problem-file", str(mpi_tmp_path / "absent.py")], "no such file"),
+                          (["run"], "choose the problem"),
+                          (["run", "--problem", "nosuch"], "unknown problem")):
+        capsys.readouterr()
+        assert cli.main(argv + ["--out", str(mpi_tmp_path / "never")]) == 2, argv
+        err = capsys.readouterr().err
+        if COMM.rank == 0:
+            assert message in err and len(err.strip().splitlines()) == 1, err
+    assert not (mpi_tmp_path / "never").exists()
