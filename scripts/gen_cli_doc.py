@@ -54,8 +54,6 @@ def generate():
     parts = [INTRO, "## `python -m sdm_dolfinx --help`\n", "```text\n" + help_text(["sdm_dolfinx"]) + "```\n"]
     for name in runs + others:
         parts += [f"## `{name}`\n", "```text\n" + help_text(["sdm_dolfinx", name]) + "```\n"]
-    parts += ["## `python -m sdm_dolfinx.render` (pictures, animations, ParaView-friendly XDMF)\n",
-              "```text\n" + help_text(["sdm_dolfinx.render"]) + "```\n"]
     return "\n".join(parts)
 
 

@@ -39,8 +39,8 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def _render_module():
-    """sdm_dolfinx/render.py loaded by path (it needs only the standard library at load time)."""
-    spec = importlib.util.spec_from_file_location("sdm_render", ROOT / "sdm_dolfinx" / "render.py")
+    """sdm_dolfinx/post/xdmf.py loaded by path (it needs only the standard library at load time)."""
+    spec = importlib.util.spec_from_file_location("sdm_render", ROOT / "sdm_dolfinx" / "post" / "xdmf.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod

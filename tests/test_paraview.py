@@ -18,7 +18,8 @@ from mpi4py import MPI
 import numpy as np
 import pytest
 
-from sdm_dolfinx import disc, membrane, render, simulate
+from sdm_dolfinx import disc, membrane, simulate
+from sdm_dolfinx.post import render
 
 COMM = MPI.COMM_WORLD
 ROOT = Path(__file__).resolve().parent.parent

@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 from dolfinx import fem, mesh as dmesh
 
-from sdm_dolfinx import cli, compat, disc, membrane, postprocess, simulate
+from sdm_dolfinx import cli, compat, post, simulate
+from sdm_dolfinx.problems import disc, membrane
+from sdm_dolfinx.run.observers import PointProbe
 
 COMM = MPI.COMM_WORLD
 
@@ -31,15 +33,15 @@ def test_linear_field_exact_across_nonmatching_squares(degrees):
     us, ud, exact = fem.Function(Vs), fem.Function(Vd), fem.Function(Vd)
     us.interpolate(_linear)
     exact.interpolate(_linear)
-    compat.interpolate_nonmatching(ud, us)
+    post.interpolate_nonmatching(ud, us)
     assert _max_abs(ud.x.array - exact.x.array) < 50 * np.finfo(float).eps
 
 
 def test_linear_vector_field_exact_between_disc_levels():
     """Curved P2 meshes of the disc at two levels: points of one just outside the other
     (their circles are approximated differently) are extrapolated, still exactly."""
-    coarse, _ = disc.Problem(level=1).mesh, None
-    fine = disc.Problem(level=2).mesh
+    coarse = disc.problem(level=1).mesh
+    fine = disc.problem(level=2).mesh
     el = compat.element("Lagrange", "triangle", 2, (2,))
     Vc, Vf = compat.function_space(coarse, el), compat.function_space(fine, el)
 
@@ -49,7 +51,7 @@ def test_linear_vector_field_exact_between_disc_levels():
         src, dst, exact = fem.Function(src_space), fem.Function(dst_space), fem.Function(dst_space)
         src.interpolate(field)
         exact.interpolate(field)
-        stats = compat.interpolate_nonmatching(dst, src, padding=0.5)
+        stats = post.interpolate_nonmatching(dst, src, padding=0.5)
         assert _max_abs(dst.x.array - exact.x.array) < 1e-11
         if "max_distance" in stats:       # the 0.5 path reports how far it extrapolated
             assert COMM.allreduce(stats["max_distance"], op=MPI.MAX) > 0
@@ -59,8 +61,8 @@ def test_point_far_outside_is_refused():
     src = dmesh.create_unit_square(COMM, 3, 3)
     u = fem.Function(compat.function_space(src, compat.element("Lagrange", "triangle", 1)))
     pts = np.array([[2.0, 2.0, 0.0]]) if COMM.rank == 0 else np.zeros((0, 3))
-    with pytest.raises(postprocess.PostprocessError, match="farther"):
-        postprocess.evaluate_nonmatching(u, pts, padding=1e-3)
+    with pytest.raises(post.PostprocessError, match="farther"):
+        post.evaluate_nonmatching(u, pts, padding=1e-3)
 
 
 def test_h1_error_of_shifted_field():
@@ -69,13 +71,13 @@ def test_h1_error_of_shifted_field():
     u, ref = fem.Function(V), fem.Function(V)
     ref.interpolate(lambda x: 1.0 + x[0])          # |ref|_H1^2 = int (1+x)^2 + 1 = 7/3 + 1
     u.interpolate(lambda x: 1.1 + x[0])            # error 0.1, gradient error 0
-    assert postprocess.h1_error(u, ref) == pytest.approx(0.1 / np.sqrt(10.0 / 3.0), rel=1e-12)
+    assert post.h1_error(u, ref) == pytest.approx(0.1 / np.sqrt(10.0 / 3.0), rel=1e-12)
 
 
 @pytest.mark.parametrize("slope", [0.69, 1.0, 2.5])
 def test_convergence_rate_of_synthetic_data(slope):
     h = np.array([2.0, 1.0, 0.5, 0.25])
-    assert abs(postprocess.convergence_rate(h, 0.037 * h ** slope) - slope) < 1e-6
+    assert abs(post.convergence_rate(h, 0.037 * h ** slope) - slope) < 1e-6
 
 
 def _read_csv(path):
@@ -99,7 +101,7 @@ def test_energy_recomputed_from_fields_matches_timeseries(mpi_tmp_path, args, ca
         assert "max relative difference" in capsys.readouterr().out
         rec, ts = _read_csv(out / "energy_recomputed.csv"), _read_csv(out / "timeseries.csv")
         assert np.array_equal(rec["step"], ts["step"])             # every step was written
-    res = postprocess.recompute_energy(out, COMM, write=False)
+    res = post.recompute_energy(out, COMM, write=False)
     eps = np.finfo(np.dtype(res["stored_dtype"])).eps
     # round-off: within a few hundred eps of what summation order can change (float64 storage)
     assert res["stored_dtype"] == "float64"
@@ -112,17 +114,16 @@ def test_state_written_on_one_rank_is_read_on_all(mpi_tmp_path):
     matched by their coordinates, not by the writer's numbering."""
     out = mpi_tmp_path / "serial"
     if COMM.rank == 0:
-        simulate(membrane.Problem(N=5, comm=MPI.COMM_SELF), pair="P2/P1", dt=0.02, T=0.4, out=out, write_every=4)
+        simulate(membrane.problem(MPI.COMM_SELF, N=5), pair="P2/P1", dt=0.02, T=0.4, out=out, write_every=4)
     COMM.Barrier()
-    info, problem, W, Vs = postprocess.rebuild(out, COMM)
-    reader = postprocess.StateReader(out, W, Vs, COMM)
+    info, problem, W, Vs = post.rebuild(out, COMM)
+    reader = post.StateReader(out, W, Vs, COMM)
     u, _ = reader.read(len(reader) - 1)
-    ts = postprocess.read_timeseries(out, COMM)
+    ts = post.read_timeseries(out, COMM)
     # the probe value at the centre from the reloaded field equals the run's own record
-    from sdm_dolfinx.output import PointProbe
     probe = PointProbe(W, (0.5, 0.5))
     assert probe(compat.petsc_vec(u)) == pytest.approx(ts["u_probe"][-1], abs=1e-6 * 0.02)
-    res = postprocess.recompute_energy(out, COMM, write=False)
+    res = post.recompute_energy(out, COMM, write=False)
     assert res["max_roundoff_ratio"] <= 300 * np.finfo(np.dtype(res["stored_dtype"])).eps
 
 

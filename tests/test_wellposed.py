@@ -18,8 +18,9 @@ import scipy.sparse as sp
 import ufl
 from dolfinx import mesh as dmesh
 
-from sdm_dolfinx import cli, compat, membrane, problem as _problem, wellposed
-from sdm_dolfinx.wellposed import TOL, inspect, measure
+from sdm_dolfinx import cli, compat, post
+from sdm_dolfinx.post import TOL, inspect, measure
+from sdm_dolfinx.problems import Problem, membrane
 
 COMM = MPI.COMM_WORLD
 
@@ -34,7 +35,7 @@ def tiny_mesh(points, cells):
 def scalar_problem(msh, constrained):
     """A scalar membrane-type Problem on ``msh``, no Dirichlet data, u >= 0 at the vertices where
     ``constrained(x)`` is True."""
-    return _problem.Problem(
+    return Problem(
         name="tiny", mesh=msh, shape=(),
         a=lambda u, w: ufl.inner(ufl.grad(u), ufl.grad(w)) * ufl.dx,
         l=lambda w: w * ufl.dx,
@@ -53,7 +54,7 @@ def everywhere(x):
                                          (4, "crossed")])
 def test_p1plus_p0_satisfies_condition_7(N, diagonal):
     """Lemma 2: beta > 0, and the count condition holds (with equality: one bubble per P0 cell)."""
-    r = inspect(membrane.Problem(N=N, diagonal=diagonal), "P1+/P0")
+    r = inspect(membrane.problem(N=N, diagonal=diagonal), "P1+/P0")
     assert r["verdict"] == "well-posed", r["reason"]
     assert r["count_condition"] and r["kernel_condition"]
     assert r["dim_H"] == r["dim_W"] - r["N_g"] and r["dim_ker_B"] == r["N_g"]
@@ -64,7 +65,7 @@ def test_p1plus_p0_satisfies_condition_7(N, diagonal):
 
 
 def test_p1plus_p0_beta_does_not_degenerate():
-    betas = [inspect(membrane.Problem(N=N), "P1+/P0")["beta"] for N in (4, 8, 12)]
+    betas = [inspect(membrane.problem(N=N), "P1+/P0")["beta"] for N in (4, 8, 12)]
     assert all(b > 0.5 for b in betas) and betas[0] > betas[1] > betas[2]
     assert abs(betas[-1] - betas[-2]) < 0.01
 
@@ -73,7 +74,7 @@ def test_p1plus_p0_beta_does_not_degenerate():
 @pytest.mark.parametrize("pair", ["P1/P1", "P2/P2"])
 def test_standard_galerkin_is_ill_posed(pair):
     """H^h = W^h: B is W's (invertible) mass matrix, Ker(B) = {0}, beta = 0."""
-    r = inspect(membrane.Problem(N=4), pair)
+    r = inspect(membrane.problem(N=4), pair)
     assert r["dim_ker_B"] == 0 and r["B_injective"] and r["B_surjective"]
     assert r["beta"] == 0.0
     assert not r["M_singular"]
@@ -84,7 +85,7 @@ def test_standard_galerkin_is_ill_posed(pair):
 def test_p1_p0_is_ill_posed_with_the_reason():
     """P1/P0 on the membrane: dim H^h = 2N^2 > dim W^h - N_g = 0, B injective but not surjective."""
     N = 4
-    r = inspect(membrane.Problem(N=N), "P1/P0")
+    r = inspect(membrane.problem(N=N), "P1/P0")
     assert (r["dim_W"], r["dim_H"], r["N_g"]) == ((N - 1) ** 2, 2 * N * N, (N - 1) ** 2)
     assert not r["count_condition"] and not r["kernel_condition"]
     assert r["dim_ker_B"] == 0 and not r["B_surjective"]      # Remark 1: V0 must lie in Im(C^-1 B)
@@ -102,7 +103,7 @@ def test_p1plus_p1_fails_on_three_colourable_meshes():
     Q^T G W = q^T B W = 0 for all W in Ker(B). These q form a 2-dimensional space: G is not surjective
     on Ker(B), whatever the basis. (On the unstructured disc mesh P1+/P1 passes: see below.)
     """
-    r = inspect(membrane.Problem(N=6), "P1+/P1")
+    r = inspect(membrane.problem(N=6), "P1+/P1")
     assert r["kernel_condition"] and r["beta"] < TOL and r["zero_modes"] == 2
     assert r["verdict"] == "ill-posed" and "not surjective on Ker(B)" in r["reason"]
 
@@ -167,7 +168,7 @@ def test_single_triangle_p1plus_p0():
     """
     msh = tiny_mesh([[0.0, 0.0], [1.0, 0.0], [0.3, 0.8]], [[0, 1, 2]])
     r = inspect(scalar_problem(msh, everywhere), "P1+/P0")
-    from sdm_dolfinx.discretisation import Discretisation
+    from sdm_dolfinx.method.discretisation import Discretisation
     d = Discretisation(scalar_problem(msh, everywhere), "P1+/P0")
     row = d.B.getValuesCSR()[2]
     bubble = np.setdiff1d(np.arange(4), d.cdofs)
@@ -191,7 +192,7 @@ def test_measure_on_the_hand_matrix(dense_max):
 
 @pytest.mark.parametrize("pair", ["P1+/P0", "P2/P1", "P1+/P1", "P1/P0", "P1/P1"])
 def test_dense_and_iterative_paths_agree(pair):
-    problem = membrane.Problem(N=5)
+    problem = membrane.problem(N=5)
     a = inspect(problem, pair)
     b = inspect(problem, pair, dense_max=0)
     assert a["method_short"] == "dense" and b["method_short"] == "iterative"
@@ -201,7 +202,7 @@ def test_dense_and_iterative_paths_agree(pair):
 
 
 def test_no_constraints_is_vacuous():
-    r = inspect(membrane.Problem(N=3, with_obstacle=False), "P2/P1")
+    r = inspect(membrane.problem(N=3, with_obstacle=False), "P2/P1")
     assert r["N_g"] == 0 and r["beta"] is None and r["verdict"] == "well-posed"
 
 
@@ -210,15 +211,15 @@ def test_same_numbers_on_any_number_of_ranks():
     so 2 ranks only permute rows and columns)."""
     ref = {"P1+/P0": 0.513075236708361, "P2/P1": 0.6221126584273717}
     for pair, beta in ref.items():
-        r = inspect(membrane.Problem(N=8), pair)
+        r = inspect(membrane.problem(N=8), pair)
         assert r["beta"] == pytest.approx(beta, abs=1e-12)
         assert r["ranks"] == COMM.size
         assert COMM.allgather(r["beta"]) == [r["beta"]] * COMM.size
 
 
 def test_disc_p2_p1_with_contact_at_boundary_vertices():
-    disc = pytest.importorskip("sdm_dolfinx.disc")
-    r = inspect(disc.Problem(level=1), "P2/P1")
+    from sdm_dolfinx.problems import disc
+    r = inspect(disc.problem(level=1), "P2/P1")
     assert r["n_dirichlet"] == 0 and r["count_condition"]
     assert r["verdict"] == "well-posed" and r["beta"] > 0.5
 
@@ -242,7 +243,7 @@ def test_command_line_writes_json(mpi_tmp_path, capsys):
 
 def test_sweep_prints_table_and_writes_png(mpi_tmp_path, capsys):
     png, js = mpi_tmp_path / "beta.png", mpi_tmp_path / "sweep.json"
-    rc = wellposed.main(["--pair", "P1+/P0", "P1+/P1", "--sweep", "2", "4", "--png", str(png), "--json", str(js)])
+    rc = cli.main(["inspect", "--pair", "P1+/P0", "P1+/P1", "--sweep", "2", "4", "--png", str(png), "--json", str(js)])
     assert rc == 0
     COMM.Barrier()
     rows = json.loads(js.read_text())["results"]
@@ -265,7 +266,7 @@ def test_sweep_prints_table_and_writes_png(mpi_tmp_path, capsys):
     (["--bogus"], "unrecognized arguments"),
 ])
 def test_bad_input_one_line_exit_2(argv, message, capsys):
-    assert wellposed.main(argv) == 2
+    assert cli.main(["inspect", *argv]) == 2
     if COMM.rank == 0:
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and err.startswith("python -m sdm_dolfinx inspect: error:")
@@ -273,7 +274,7 @@ def test_bad_input_one_line_exit_2(argv, message, capsys):
 
 
 def test_json_path_that_is_a_folder(mpi_tmp_path, capsys):
-    assert wellposed.main(["--json", str(mpi_tmp_path)]) == 2
+    assert cli.main(["inspect", "--json", str(mpi_tmp_path)]) == 2
     if COMM.rank == 0:
         assert "is a folder" in capsys.readouterr().err
 
@@ -291,5 +292,5 @@ def test_rank_deficient_beyond_the_dense_path_is_an_error():
     B = sp.csr_matrix([[1.0, 1.0, 0.0], [1.0, 1.0, 0.0]])
     r = measure(B, sp.identity(2, format="csr"), [2])
     assert (r["rank_B"], r["dim_ker_B"], r["beta"]) == (1, 2, 1.0)     # dense: e_3 lies in Ker(B)
-    with pytest.raises(wellposed.InspectError, match="rank deficient"):
+    with pytest.raises(post.InspectError, match="rank deficient"):
         measure(B, sp.identity(2, format="csr"), [2], dense_max=0)

@@ -20,6 +20,7 @@ TOOLS = {
     "figures": ("sdm_dolfinx.cli.figures", "rerun the paper's studies (only what is missing) and regenerate its "
                                            "figures and Table 2"),
     "energy": ("sdm_dolfinx.cli.energy", "recompute a finished run's energy history from its state.h5"),
+    "render": ("sdm_dolfinx.cli.render", "pictures and animations of a run from its files; ParaView-friendly XDMF"),
 }
 
 

@@ -77,6 +77,7 @@ class Discretisation:
         # P1 spaces for output (XDMF wants vertex fields) and nodal measures
         self.Q1 = compat.function_space(msh, compat.element("Lagrange", cell, 1))
         self.P1 = (self.Q1 if not shape else compat.function_space(msh, compat.element("Lagrange", cell, 1, shape)))
+        self._mass = None
         self._assemble()
         self._constraints()
         self._dirichlet()
@@ -111,11 +112,37 @@ class Discretisation:
         self.M = self.B.transposeMatMult(Bs)      # B^T C^-1 B
         Bs.destroy()
 
+    def mass_product(self):
+        """The fastest ``mult(x, y)``: y = M x for this discretisation.
+
+        M itself, or B^T (D^-1 (B x)) when M = B^T D^-1 B is much denser than B (P2/P1: 3
+        products per step with M cost as much as the step's solve; through B, a third), or
+        for the consistent variant (M never formed) B^T C^-1 B x with a solve with C.
+        """
+        if self.M is None:
+            return self._consistent_mass_mult
+        if self.B is None or self.c_lumped is None:
+            return self.M.mult
+        local = PETSc.Mat.InfoType.LOCAL
+        nz = self.comm.allreduce(np.array([self.M.getInfo(local)["nz_used"], self.B.getInfo(local)["nz_used"]]),
+                                 op=MPI.SUM)
+        if nz[0] <= 3 * nz[1]:
+            return self.M.mult
+        h = self.B.createVecLeft()
+
+        def mult(x, y):
+            self.B.mult(x, h)
+            h.pointwiseDivide(h, self.c_lumped)
+            self.B.multTranspose(h, y)
+        return mult
+
     def mass_mult(self, x, y):
         """y = M x (also for the consistent variant, through a solve with C)."""
-        if self.M is not None:
-            self.M.mult(x, y)
-            return
+        if self._mass is None:
+            self._mass = self.mass_product()
+        self._mass(x, y)
+
+    def _consistent_mass_mult(self, x, y):
         bx = self.B.createVecLeft()
         self.B.mult(x, bx)
         z = self.solve_C(bx)

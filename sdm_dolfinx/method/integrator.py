@@ -34,7 +34,7 @@ class Integrator:
     """One scheme applied to one Discretisation with one time step.
 
     Args:
-        disc: a :class:`sdm_dolfinx.discretisation.Discretisation`.
+        discretisation: a :class:`sdm_dolfinx.disccretisation.Discretisation`.
         scheme: ``"midpoint"`` or ``"backward-euler"``.
         dt: the time step.
         vi_solver: ``"ssn"`` (semi-smooth Newton, default), ``"vinewtonrsls"``, ``"vinewtonssls"``.
@@ -42,28 +42,28 @@ class Integrator:
         options: extra PETSc options for the step solver.
     """
 
-    def __init__(self, disc, scheme="midpoint", dt=1e-3, vi_solver="ssn", linear="auto", options=None):
+    def __init__(self, discretisation, scheme="midpoint", dt=1e-3, vi_solver="ssn", linear="auto", options=None):
         self.time_scheme = schemes.get(scheme)
-        self.disc, self.scheme, self.dt = disc, scheme, float(dt)
+        self.discretisation, self.scheme, self.dt = discretisation, scheme, float(dt)
         self.alpha = self.time_scheme.factor / self.dt
-        self.block = disc.mass == "consistent"
-        self.nW = disc.A.getLocalSize()[0]
+        self.block = discretisation.mass == "consistent"
+        self.nW = discretisation.A.getLocalSize()[0]
         self._build()
         # a factorisation of K = alpha^2 B^T D^-1 B + A is cheaper through the sparser
         # augmented matrix [A, alpha B^T; alpha B, -D] when M is much denser than A (P2/P1)
         self.factor_matrix = None
         if linear == "auto":
-            linear = choose_strategy(disc.num_constraints, not self.block)
+            linear = choose_strategy(discretisation.num_constraints, not self.block)
         if (vi_solver == "ssn" and linear in ("schur", "cg-factor") and not self.block
-                and disc.B is not None and disc.c_lumped is not None):
-            self.factor_matrix = sparse_factor_matrix(self.K, disc.A, disc.B, disc.c_lumped, self.alpha, disc.ddofs)
-        self.solver = make_vi_solver(vi_solver, self.K, disc.cdofs, disc.lb,
+                and discretisation.B is not None and discretisation.c_lumped is not None):
+            self.factor_matrix = sparse_factor_matrix(self.K, discretisation.A, discretisation.B, discretisation.c_lumped, self.alpha, discretisation.ddofs)
+        self.solver = make_vi_solver(vi_solver, self.K, discretisation.cdofs, discretisation.lb,
                                      symmetric_positive=not self.block, linear=linear, options=options,
                                      factor_matrix=self.factor_matrix)
         self.vi_solver = vi_solver
 
     def _build(self):
-        d, a = self.disc, self.alpha
+        d, a = self.discretisation, self.alpha
         if not self.block:
             K = d.M.copy()
             K.scale(a * a)
@@ -91,30 +91,11 @@ class Integrator:
         self._tmpW = d.A.createVecLeft()
         self._tmpW2 = d.A.createVecLeft()
         self._rigid = {}
-        self._mass = self._mass_product()
-
-    def _mass_product(self):
-        """y = M x, as B^T (D^-1 (B x)) when M = B^T D^-1 B is much denser than B (P2/P1:
-        3 products per step with M cost as much as the step's solve; through B, a third)."""
-        d = self.disc
-        if self.block or d.B is None or d.c_lumped is None:
-            return None if self.block else d.M.mult
-        local = PETSc.Mat.InfoType.LOCAL
-        nz = d.comm.allreduce(np.array([d.M.getInfo(local)["nz_used"], d.B.getInfo(local)["nz_used"]]),
-                              op=MPI.SUM)
-        if nz[0] <= 3 * nz[1]:
-            return d.M.mult
-        h = d.B.createVecLeft()
-
-        def mult(x, y):
-            d.B.mult(x, h)
-            h.pointwiseDivide(h, d.c_lumped)
-            d.B.multTranspose(h, y)
-        return mult
+        self._mass = None if self.block else d.mass_product()     # the block variant never forms M
 
     def rhs(self, U, V):
         """Right-hand side for the state (U^n, V^n), with Dirichlet lifting applied."""
-        d, a, b, nW = self.disc, self.alpha, self.b, self.nW
+        d, a, b, nW = self.discretisation, self.alpha, self.b, self.nW
         t = self._tmpW
         if not self.block:
             V.copy(t)
@@ -141,7 +122,7 @@ class Integrator:
         Raises:
             StepError: naming the step, the time and the cause.
         """
-        d, nW = self.disc, self.nW
+        d, nW = self.discretisation, self.nW
         b = self.rhs(U, V)
         X = self.X
         X.array[:nW] = U.array          # initial guess: the previous displacement
@@ -152,7 +133,7 @@ class Integrator:
         except VIError as e:
             raise StepError(f"step {n + 1} (t = {t + self.dt:.6g}): {e}") from None
         x = X.array[:nW]
-        info["gap_imposed"] = self.disc.comm.allreduce(
+        info["gap_imposed"] = self.discretisation.comm.allreduce(
             float(np.min(x[d.cdofs] - d.lb, initial=np.inf)), op=MPI.MIN)
         Un = U.array.copy()
         ts = self.time_scheme
@@ -161,7 +142,7 @@ class Integrator:
             V.array[:] = ts.velocity_block(X.array[nW:], V.array)
         else:
             V.array[:] = ts.velocity(x, Un, V.array, self.alpha)
-        info["gap_end"] = self.disc.comm.allreduce(
+        info["gap_end"] = self.discretisation.comm.allreduce(
             float(np.min(U.array[d.cdofs] - d.lb, initial=np.inf)), op=MPI.MIN)
         return info
 
@@ -170,14 +151,14 @@ class Integrator:
         variant) V0 in H^h with C V0 = B Vbar0 (condition (6) holds by construction)."""
         if not self.block:
             return V
-        bv = self.disc.B.createVecLeft()
-        self.disc.B.mult(V, bv)
-        return self.disc.solve_C(bv)
+        bv = self.discretisation.B.createVecLeft()
+        self.discretisation.B.mult(V, bv)
+        return self.discretisation.solve_C(bv)
 
     @property
     def active(self):
         """Which owned constrained dofs are active (the step solver's active set)."""
-        return getattr(self.solver, "active", np.zeros(len(self.disc.cdofs), dtype=bool))
+        return getattr(self.solver, "active", np.zeros(len(self.discretisation.cdofs), dtype=bool))
 
     @active.setter
     def active(self, mask):
@@ -195,7 +176,7 @@ class Integrator:
 
     def energies(self, U, V):
         """(kinetic, potential) of the discrete energy J^h (Theorem 2)."""
-        d = self.disc
+        d = self.discretisation
         t = self._tmpW
         d.A.mult(U, t)
         pot = 0.5 * U.dot(t) - U.dot(d.L)
@@ -210,7 +191,7 @@ class Integrator:
 
     def momentum(self, V, component):
         """Discrete momentum e^T M Vbar (or (B e)^T V) along ``component``."""
-        d = self.disc
+        d = self.discretisation
         if component not in self._rigid:
             self._rigid[component] = d.rigid_vector(component)
         e = self._rigid[component]

@@ -1,225 +1,54 @@
-"""Pictures and viewer-friendly files from a run's ``solution.xdmf`` (optional helpers).
+"""Pictures and animations of a run from its ``solution.xdmf`` (optional helpers).
 
 Everything here reads the files a run wrote (``solution.xdmf`` + ``.h5``, ``run.json``), so it
 works the same for runs made with the command line or the Python API, on any number of ranks
 (call it on one rank: Debian's h5py is serial).
 
-* :func:`merge_xdmf` rewrites dolfinx's XDMF, which stores every field as its own temporal
-  grid (ParaView then shows four overlapping copies of the mesh, each carrying one array,
-  and "Warp By Scalar" + "colour by contact_stress" fails), into one temporal grid whose
-  every time step carries all fields. Same HDF5 file, only the XML differs.
-* :func:`read_xdmf` loads mesh, times and fields with h5py (no ParaView, no dolfinx).
-* :func:`picture` and :func:`animation` render a warped membrane over its obstacle, or a
-  deformed elastic body coloured by its von Mises stress, with pyvista off-screen when it is
-  installed (``pip install pyvista imageio``; its VTK wheel renders through EGL/OSMesa
-  without a display) and with matplotlib otherwise.
+:func:`picture` and :func:`animation` render a warped membrane over its obstacle, or a
+deformed elastic body coloured by its von Mises stress, with pyvista off-screen when it is
+installed (``pip install pyvista imageio``; its VTK wheel renders through EGL/OSMesa without a
+display) and with matplotlib otherwise (:mod:`.render_mpl`). Reading the files and the
+ParaView-friendly XDMF are in :mod:`.xdmf`; their names are available here as well
+(``render.read_xdmf``, ``render.merge_xdmf``, ...).
 
-Command line::
+Command line (also the pyvista child process, see :func:`_in_child`)::
 
-    python -m sdm_dolfinx.render RUN_DIR [--png F] [--gif F] [--time T] [--merge]
+    python -m sdm_dolfinx.post.render RUN_DIR [--png F] [--gif F] [--time T] [--merge]
 
-This module imports only the standard library at load time (numpy, h5py, pyvista and
-matplotlib inside the functions), so a ParaView ``pvpython`` script can load it by path.
+This module, :mod:`.xdmf` and :mod:`.render_mpl` import only the standard library at load time
+(numpy, h5py, pyvista and matplotlib inside the functions), so a ParaView ``pvpython`` script
+can load this file by path; it then loads its two siblings by path too.
 """
 import json
 import os
 import subprocess
 import sys
-import xml.etree.ElementTree as ET
 from pathlib import Path
+
+
+def _load_sibling(name):
+    """The module ``name``.py next to this file, loaded by path (no package import: see above)."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location(f"sdm_render_{name}", Path(__file__).with_name(f"{name}.py"))
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+if __package__:            # imported as sdm_dolfinx.post.render
+    from sdm_dolfinx.post import render_mpl, xdmf
+else:                      # loaded by path (pvpython, the pyvista child process)
+    xdmf, render_mpl = _load_sibling("xdmf"), _load_sibling("render_mpl")
+
+# the names demos, tests and the paper use as render.<name>
+Series, read_xdmf, merge_xdmf, merged_path, von_mises = (xdmf.Series, xdmf.read_xdmf, xdmf.merge_xdmf,
+                                                          xdmf.merged_path, xdmf.von_mises)
+p2_edge_lines, draw_foundation, draw_disc_mesh = (render_mpl.p2_edge_lines, render_mpl.draw_foundation,
+                                                  render_mpl.draw_disc_mesh)
 
 #: Xdmf topology name -> (VTK cell type, nodes per cell)
 _CELLS = {"Triangle": (5, 3), "Triangle_6": (22, 6), "Quadrilateral": (9, 4), "Tetrahedron": (10, 4)}
-#: the four linear triangles of a quadratic (VTK-ordered) triangle, for drawing and gradients
-_SUB_TRIANGLES = ((0, 3, 5), (3, 1, 4), (5, 4, 2), (3, 4, 5))
-_XI = "http://www.w3.org/2001/XInclude"
-
-
-def merged_path(xdmf):
-    """Where :func:`merge_xdmf` writes by default: ``solution.xdmf`` -> ``solution_paraview.xdmf``."""
-    xdmf = Path(xdmf)
-    return xdmf.with_name(xdmf.stem + "_paraview.xdmf")
-
-
-def merge_xdmf(src, dst=None):
-    """Write an XDMF file with one temporal grid holding every field at every time.
-
-    dolfinx writes the mesh grid and then one temporal collection per function; ParaView's
-    readers turn that into one block per function, each a full copy of the mesh with a single
-    array. The file written here references the same HDF5 datasets (so it must stay next to
-    ``src``) but lists, per time step, the mesh and all attributes of that time, and declares
-    the float data as 8-byte (dolfinx 0.5 leaves Xdmf's 4-byte default, so ParaView reads
-    ``solution.xdmf`` in single precision).
-
-    Args:
-        src: a ``solution.xdmf`` written by dolfinx.
-        dst: the output path (default :func:`merged_path` of ``src``).
-
-    Returns:
-        The path written.
-    """
-    src = Path(src)
-    dst = merged_path(src) if dst is None else Path(dst)
-    root = ET.parse(src).getroot()
-    domain = root.find("Domain")
-    mesh = next(g for g in domain.findall("Grid") if g.get("GridType") == "Uniform")
-    topology, geometry = mesh.find("Topology"), mesh.find("Geometry")
-    times, attributes = [], {}
-    for coll in domain.findall("Grid"):
-        if coll.get("GridType") != "Collection":
-            continue
-        for g in coll.findall("Grid"):
-            t = g.find("Time").get("Value")
-            if t not in attributes:
-                times.append(t)
-                attributes[t] = []
-            attributes[t].extend(g.findall("Attribute"))
-    # dolfinx 0.5 omits the precision of its float data, and Xdmf's default is 4 bytes: ParaView
-    # then reads the (8-byte) coordinates and fields in single precision. Say 8 (dolfinx writes
-    # PETSc's double scalars).
-    for item in list(geometry.iter("DataItem")) + [d for t in times for a in attributes[t] for d in a.iter("DataItem")]:
-        if "Precision" not in item.attrib and item.get("NumberType", "Float") == "Float":
-            item.set("NumberType", "Float")
-            item.set("Precision", "8")
-    out = ET.Element("Xdmf", {"Version": "3.0"})
-    dom = ET.SubElement(out, "Domain")
-    series = ET.SubElement(dom, "Grid", {"Name": "solution", "GridType": "Collection",
-                                         "CollectionType": "Temporal"})
-    for t in sorted(times, key=float):
-        g = ET.SubElement(series, "Grid", {"Name": "solution", "GridType": "Uniform"})
-        g.append(topology)
-        g.append(geometry)
-        ET.SubElement(g, "Time", {"Value": t})
-        for a in attributes[t]:
-            g.append(a)
-    ET.indent(out)
-    tmp = dst.with_name(dst.name + ".tmp")
-    with open(tmp, "wb") as fh:
-        fh.write(b'<?xml version="1.0"?>\n<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>\n')
-        ET.ElementTree(out).write(fh, encoding="utf-8")
-        fh.write(b"\n")
-    os.replace(tmp, dst)
-    return dst
-
-
-class Series:
-    """A run's fields as numpy arrays, read from its XDMF/HDF5 files.
-
-    Attributes:
-        points: (n, 3) node coordinates.
-        cells: (m, k) node indices per cell, VTK ordering.
-        cell_type: the Xdmf topology name (``"Triangle"``, ``"Triangle_6"``, ...).
-        times: sorted list of output times.
-        run: the run's ``run.json`` (empty dict when there is none).
-    """
-
-    def __init__(self, points, cells, cell_type, times, datasets, h5path, run, xdmf=None):
-        self.points, self.cells, self.cell_type, self.times = points, cells, cell_type, times
-        self.xdmf = xdmf
-        self._datasets, self._h5path, self.run = datasets, h5path, run
-
-    @property
-    def fields(self):
-        """Names of the fields stored at the output times."""
-        return sorted(self._datasets)
-
-    def field(self, name, time):
-        """The nodal values of ``name`` at the output time nearest to ``time``, shape (n,) or (n, k)."""
-        import h5py
-        import numpy as np
-        k = self.index(time)
-        with h5py.File(self._h5path, "r") as h5:
-            a = np.array(h5[self._datasets[name][k]])
-        return a[:, 0] if a.ndim == 2 and a.shape[1] == 1 else a
-
-    def index(self, time):
-        """Index of the output time nearest to ``time``."""
-        import numpy as np
-        return int(np.argmin(np.abs(np.asarray(self.times) - time)))
-
-    @property
-    def parameters(self):
-        """The problem's parameters from run.json."""
-        return self.run.get("problem", {}).get("parameters", {})
-
-    @property
-    def problem_name(self):
-        """The problem's name from run.json (``membrane``, ``disc``, ...)."""
-        return self.run.get("problem", {}).get("name", "")
-
-    def vertex_mask(self):
-        """True at the nodes that are cell vertices (not the midside nodes of quadratic cells)."""
-        import numpy as np
-        mask = np.zeros(len(self.points), dtype=bool)
-        mask[self.cells[:, :3].ravel()] = True
-        return mask
-
-    def linear_triangles(self):
-        """(m', 3) straight triangles covering the mesh (quadratic ones split in four)."""
-        import numpy as np
-        if self.cell_type == "Triangle":
-            return self.cells
-        if self.cell_type == "Triangle_6":
-            return np.concatenate([self.cells[:, list(s)] for s in _SUB_TRIANGLES])
-        raise ValueError(f"cannot draw {self.cell_type} cells")
-
-
-def read_xdmf(path):
-    """Read a dolfinx ``solution.xdmf`` (or its merged version) into a :class:`Series`.
-
-    Args:
-        path: the XDMF file or the run's folder.
-    """
-    import h5py
-    import numpy as np
-    path = Path(path)
-    if path.is_dir():
-        path = path / "solution.xdmf"
-    root = ET.parse(path).getroot()
-    top = root.find(".//Topology")
-    geo = root.find(".//Geometry")
-    h5name = top.find("DataItem").text.strip().split(":")[0]
-    h5path = path.parent / h5name
-    datasets, times = {}, set()
-    for g in root.iter("Grid"):
-        t = g.find("Time")
-        if t is None:
-            continue
-        times.add(float(t.get("Value")))
-        for a in g.findall("Attribute"):
-            datasets.setdefault(a.get("Name"), {})[float(t.get("Value"))] = a.find("DataItem").text.strip().split(":")[1]
-    times = sorted(times)
-    datasets = {k: [v[t] for t in times] for k, v in datasets.items()}
-    with h5py.File(h5path, "r") as h5:
-        x = np.array(h5[geo.find("DataItem").text.strip().split(":")[1]])
-        cells = np.array(h5[top.find("DataItem").text.strip().split(":")[1]], dtype=np.int64)
-    points = np.zeros((x.shape[0], 3))
-    points[:, :x.shape[1]] = x
-    run_json = path.parent / "run.json"
-    run = json.loads(run_json.read_text()) if run_json.exists() else {}
-    return Series(points, cells, top.get("TopologyType"), times, datasets, h5path, run, path.resolve())
-
-
-def von_mises(series, displacement, lame_lambda, lame_mu):
-    """Plane-strain von Mises stress of a vertex displacement, one value per linear triangle.
-
-    The displacement is piecewise linear on :meth:`Series.linear_triangles`, so the strain is
-    constant on each of them; sigma_zz = lambda tr(eps) (plane strain).
-    """
-    import numpy as np
-    tri = series.linear_triangles()
-    x = series.points[:, :2][tri]                 # (m, 3, 2)
-    u = displacement[:, :2][tri]
-    d = np.stack([x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]], axis=1)       # rows: edge vectors
-    du = np.stack([u[:, 1] - u[:, 0], u[:, 2] - u[:, 0]], axis=1)
-    grad = np.linalg.solve(d, du).transpose(0, 2, 1)                     # grad[i, j] = du_i/dx_j
-    eps = 0.5 * (grad + grad.transpose(0, 2, 1))
-    tr = eps[:, 0, 0] + eps[:, 1, 1]
-    sxx = lame_lambda * tr + 2 * lame_mu * eps[:, 0, 0]
-    syy = lame_lambda * tr + 2 * lame_mu * eps[:, 1, 1]
-    sxy = 2 * lame_mu * eps[:, 0, 1]
-    szz = lame_lambda * tr
-    return np.sqrt(0.5 * ((sxx - syy) ** 2 + (syy - szz) ** 2 + (szz - sxx) ** 2) + 3 * sxy ** 2)
 
 
 def have_pyvista():
@@ -392,16 +221,6 @@ def _foundation_pv(plotter, series, name):
     plotter.add_mesh(box, color="#9a9a9a", name="foundation")
 
 
-def _lame(series):
-    p = series.parameters
-    return float(p.get("lame_lambda", 0.0)), float(p.get("lame_mu", 1.0))
-
-
-def _stress_range(series, times, lame):
-    import numpy as np
-    top = max(float(np.max(von_mises(series, series.field("displacement", t), *lame))) for t in times)
-    return [0.0, top if top > 0 else 1.0]
-
 
 def _solid_view(plotter, series, times, scale):
     """A fixed 2-D camera framing the body over all ``times`` (and its support)."""
@@ -451,7 +270,7 @@ def picture(run, png, time=None, scale=None, size=(900, 700)):
     kind = _kind(series)
     scale = (10.0 if kind == "membrane" else 1.0) if scale is None else scale
     if not have_pyvista():
-        _picture_mpl(series, png, t, scale, kind)
+        render_mpl.picture_mpl(series, png, t, scale, kind)
         return "matplotlib"
     if _in_child():
         return _run_child([series.xdmf, "--png", Path(png).resolve(), "--time", repr(t), "--scale", repr(scale),
@@ -464,9 +283,9 @@ def picture(run, png, time=None, scale=None, size=(900, 700)):
         _membrane_frame_pv(plotter, series, t, scale, [0.0, max(u.max(), 1e-12)])
         _membrane_camera(plotter, series, scale)
     else:
-        lame = _lame(series)
+        lame = series.lame()
         _foundation_pv(plotter, series, series.problem_name)
-        _solid_frame_pv(plotter, series, t, scale, _stress_range(series, [t], lame), lame)
+        _solid_frame_pv(plotter, series, t, scale, series.stress_range([t]), lame)
         _solid_view(plotter, series, [t], scale)
     plotter.screenshot(str(png))
     plotter.close()
@@ -492,7 +311,7 @@ def animation(run, path, times=None, scale=None, size=(640, 640), fps=12):
     kind = _kind(series)
     scale = (10.0 if kind == "membrane" else 1.0) if scale is None else scale
     if not have_pyvista():
-        _animation_mpl(series, path, times, scale, kind, fps)
+        render_mpl.animation_mpl(series, path, times, scale, kind, fps)
         return "matplotlib"
     if _in_child():
         return _run_child([series.xdmf, "--gif", Path(path).resolve(), "--times", json.dumps(times),
@@ -505,8 +324,8 @@ def animation(run, path, times=None, scale=None, size=(640, 640), fps=12):
         top = max(float(series.field("displacement", t).max()) for t in times)
         clim = [0.0, top]
     else:
-        lame = _lame(series)
-        clim = _stress_range(series, times, lame)
+        lame = series.lame()
+        clim = series.stress_range(times)
         _foundation_pv(plotter, series, series.problem_name)
     frames = []
     for i, t in enumerate(times):
@@ -528,112 +347,10 @@ def animation(run, path, times=None, scale=None, size=(640, 640), fps=12):
     return "pyvista"
 
 
-# ------------------------------------------------------------------------ matplotlib: the disc mesh
-def p2_edge_lines(xy, samples=9):
-    """Polylines of the curved edges of quadratic triangles, for a matplotlib LineCollection.
-
-    ``xy``: (ncells, 6, 2) node coordinates in dolfinx's P2 order (vertices 0-2, then the
-    midpoint of edge v1-v2, v0-v2, v0-v1); returns (3 ncells, samples, 2).
-    """
-    import numpy as np
-    s = np.linspace(0.0, 1.0, samples)[:, None]
-    lines = []
-    for a, m, b in ((1, 3, 2), (0, 4, 2), (0, 5, 1)):
-        pa, pm, pb = xy[:, a, None, :], xy[:, m, None, :], xy[:, b, None, :]
-        lines.append((1 - s) * (1 - 2 * s) * pa + 4 * s * (1 - s) * pm + s * (2 * s - 1) * pb)
-    return np.concatenate(lines)
-
-
-def draw_foundation(ax, x0, x1):
-    """The rigid foundation y <= 0 (hatched) between x0 and x1 (mm)."""
-    ax.axhline(0.0, color="k", lw=1.5)
-    ax.fill_between([x0, x1], [-2.0, -2.0], [0.0, 0.0], color="0.85", hatch="///", lw=0)
-
-
-def draw_disc_mesh(ax, xy, contact, title):
-    """The disc's curved P2 mesh, its contact vertices (``contact``: (n, 2)), the foundation
-    and the lowest point A, on a matplotlib axes (the paper's Fig. 13)."""
-    import numpy as np
-    from matplotlib.collections import LineCollection
-    ax.add_collection(LineCollection(p2_edge_lines(xy), colors="k", linewidths=0.6))
-    ax.plot(contact[:, 0], contact[:, 1], "o", color="tab:red", ms=3.5, label=f"contact vertices ({len(contact)})")
-    a = contact[np.argmin(contact[:, 1])]
-    ax.annotate("A", a, xytext=(a[0] + 1.5, a[1] - 2.5), fontsize=12)
-    draw_foundation(ax, -22, 22)
-    ax.set_xlim(-22, 22)
-    ax.set_ylim(-2, 52)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x (mm)")
-    ax.set_ylabel("y (mm)")
-    ax.legend(loc="upper right", fontsize=8)
-    ax.set_title(title)
-
-
-# ------------------------------------------------------------------------ matplotlib fallback
-def _mpl():
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
-
-
-def _mpl_draw(fig, series, t, scale, kind, clim=None):
-    import matplotlib.tri as mtri
-    import numpy as np
-    tri = series.linear_triangles()
-    u = series.field("displacement", t)
-    fig.clear()
-    if kind == "membrane":
-        ax = fig.add_subplot(projection="3d")
-        x, y = series.points[:, 0], series.points[:, 1]
-        tr = mtri.Triangulation(x, y, tri)
-        obstacle = float(series.parameters.get("obstacle", 0.0))
-        xx, yy = np.meshgrid([x.min(), x.max()], [y.min(), y.max()])
-        ax.plot_surface(xx, yy, np.full_like(xx, scale * obstacle), color="0.7", alpha=0.6)
-        surf = ax.plot_trisurf(tr, scale * u, cmap="viridis", linewidth=0.2, edgecolor="0.3",
-                               vmin=None if clim is None else clim[0], vmax=None if clim is None else clim[1] * scale)
-        act = series.field("active", t) > 0.5
-        ax.scatter(x[act], y[act], scale * u[act], color="red", s=12)
-        ax.set_zlim(min(scale * obstacle, scale * u.min()) - 0.02, max(scale * u.max(), 0.1))
-        ax.set_title(f"t = {series.times[series.index(t)]:.3f} (vertical scale x{scale:g}; red: in contact)")
-        fig.colorbar(surf, ax=ax, shrink=0.6, label=f"{scale:g} x displacement")
-    else:
-        ax = fig.add_subplot()
-        xy = series.points[:, :2] + scale * u[:, :2]
-        vm = von_mises(series, u, *_lame(series))
-        pc = ax.tripcolor(xy[:, 0], xy[:, 1], tri, facecolors=vm, cmap="inferno",
-                          vmin=0 if clim is None else clim[0], vmax=None if clim is None else clim[1])
-        ax.axhline(0.0, color="k") if series.problem_name != "bar" else ax.axvline(0.0, color="k")
-        ax.set_aspect("equal")
-        ax.set_title(f"t = {series.times[series.index(t)]:.4g}")
-        fig.colorbar(pc, ax=ax, label="von Mises stress")
-    return ax
-
-
-def _picture_mpl(series, png, t, scale, kind):
-    plt = _mpl()
-    fig = plt.figure(figsize=(8, 6))
-    _mpl_draw(fig, series, t, scale, kind)
-    fig.savefig(png, dpi=100)
-    plt.close(fig)
-
-
-def _animation_mpl(series, path, times, scale, kind, fps):
-    from matplotlib.animation import FuncAnimation, PillowWriter
-    plt = _mpl()
-    fig = plt.figure(figsize=(6.4, 6.4))
-    clim = None
-    if kind != "membrane":
-        clim = _stress_range(series, times, _lame(series))
-    anim = FuncAnimation(fig, lambda i: _mpl_draw(fig, series, times[i], scale, kind, clim), frames=len(times))
-    anim.save(str(path), writer=PillowWriter(fps=fps))
-    plt.close(fig)
-
-
 def main(argv=None):
-    """``python -m sdm_dolfinx.render RUN_DIR [--png F] [--gif F] [--time T] [--merge]``."""
+    """``python -m sdm_dolfinx.post.render RUN_DIR [--png F] [--gif F] [--time T] [--merge]``."""
     import argparse
-    p = argparse.ArgumentParser(prog="python -m sdm_dolfinx.render",
+    p = argparse.ArgumentParser(prog="python -m sdm_dolfinx.post.render",
                                 description="Pictures of a run from its solution.xdmf (pyvista if installed, "
                                             "else matplotlib), and a ParaView-friendly merged XDMF.")
     p.add_argument("run", type=Path, help="the run's folder (or its solution.xdmf)")
@@ -649,11 +366,11 @@ def main(argv=None):
     p.add_argument("--merge", action="store_true",
                    help="write solution_paraview.xdmf: all fields in one temporal grid (for ParaView)")
     args = p.parse_args(argv)
-    xdmf = args.run / "solution.xdmf" if args.run.is_dir() else args.run
+    src = args.run / "solution.xdmf" if args.run.is_dir() else args.run
     if args.merge:
-        print(f"wrote {merge_xdmf(xdmf)}")
+        print(f"wrote {merge_xdmf(src)}")
     if args.png or args.gif:
-        series = read_xdmf(xdmf)
+        series = read_xdmf(src)
         if args.png:
             how = picture(series, args.png, time=args.time, scale=args.scale, size=args.size or (900, 700))
             print(f"wrote {args.png} ({how})")

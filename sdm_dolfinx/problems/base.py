@@ -155,6 +155,8 @@ class Param:
             if vals is None or len(vals) != len(self.default) or not all(_finite(v) for v in vals):
                 return [f"{label} must be {len(self.default)} finite numbers (got {value!r})"]
             return []
+        if self.choices is not None and value not in self.choices:
+            return [f"{label} must be one of {', '.join(map(str, self.choices))} (got {value!r})"]
         if kind is int and (isinstance(value, bool) or not float(value).is_integer()):
             return [f"{label} must be an integer (got {value!r})"]
         if not _finite(value):

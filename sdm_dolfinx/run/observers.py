@@ -48,18 +48,18 @@ class PointProbe:
 class ConstraintProbe:
     """The constrained vertex nearest to a point: its stress lam_i / m_i (m_i the lumped measure)."""
 
-    def __init__(self, disc, point):
-        self.comm = disc.comm
+    def __init__(self, discretisation, point):
+        self.comm = discretisation.comm
         p = np.zeros(3)
         p[:len(point)] = point
-        d = np.linalg.norm(disc.cx.T - p[None, :], axis=1) if disc.cx.shape[1] else np.zeros(0)
+        d = np.linalg.norm(discretisation.cx.T - p[None, :], axis=1) if discretisation.cx.shape[1] else np.zeros(0)
         dmin = float(d.min()) if d.size else np.inf
         best = self.comm.allreduce((dmin, self.comm.rank), op=MPI.MINLOC)
         self.owner = best[1]
         self.index = int(np.argmin(d)) if (self.comm.rank == self.owner and d.size) else -1
-        x = disc.cx[:, self.index].copy() if self.index >= 0 else np.zeros(3)
+        x = discretisation.cx[:, self.index].copy() if self.index >= 0 else np.zeros(3)
         self.vertex = self.comm.allreduce(x, op=MPI.SUM)
-        self.measure = disc.cmeasure
+        self.measure = discretisation.cmeasure
 
     def __call__(self, lam):
         val = lam[self.index] / self.measure[self.index] if self.index >= 0 else 0.0
@@ -106,12 +106,12 @@ class StateWriter:
     groups ``W`` and ``V_space`` hold ``dof_coordinates`` and ``block_size``.
     """
 
-    def __init__(self, path, disc, integrator, fingerprint, append=False, last_step=None):
-        self.comm, self.path = disc.comm, Path(path)
-        vspace = disc.H if integrator.block else disc.W
+    def __init__(self, path, discretisation, integrator, fingerprint, append=False, last_step=None):
+        self.comm, self.path = discretisation.comm, Path(path)
+        vspace = discretisation.H if integrator.block else discretisation.W
         coords = {name: gather_blocks(sp, sp.tabulate_dof_coordinates(), self.comm)
-                  for name, sp in (("W", disc.W), ("V_space", vspace))}
-        bs = {"W": disc.W.dofmap.index_map_bs, "V_space": vspace.dofmap.index_map_bs}
+                  for name, sp in (("W", discretisation.W), ("V_space", vspace))}
+        bs = {"W": discretisation.W.dofmap.index_map_bs, "V_space": vspace.dofmap.index_map_bs}
         if self.comm.rank == 0:
             import h5py
             if append and self.path.exists():
@@ -156,19 +156,19 @@ class XDMFWriter:
     ParaView's Xdmf3 reader accept.
     """
 
-    def __init__(self, path, disc, integrator, append=False):
-        self.disc, self.integ = disc, integrator
-        msh = disc.problem.mesh
+    def __init__(self, path, discretisation, integrator, append=False):
+        self.discretisation, self.integ = discretisation, integrator
+        msh = discretisation.problem.mesh
         self.path, self.comm = path, msh.comm
         if not append:
             with compat.xdmf_file(msh.comm, path, "w") as f:
                 f.write_mesh(msh)
-        self.uW = fem.Function(disc.W)
-        self.vsrc = fem.Function(disc.H if integrator.block else disc.W)
-        self.u1 = fem.Function(disc.P1, name="displacement")
-        self.v1 = fem.Function(disc.P1, name="velocity")
-        self.s1 = fem.Function(disc.Q1, name="contact_stress")
-        self.a1 = fem.Function(disc.Q1, name="active")
+        self.uW = fem.Function(discretisation.W)
+        self.vsrc = fem.Function(discretisation.H if integrator.block else discretisation.W)
+        self.u1 = fem.Function(discretisation.P1, name="displacement")
+        self.v1 = fem.Function(discretisation.P1, name="velocity")
+        self.s1 = fem.Function(discretisation.Q1, name="contact_stress")
+        self.a1 = fem.Function(discretisation.Q1, name="active")
 
     def write(self, U, V, lam, active, t):
         """Write the displacement, velocity, contact stress and active set at time t (collective).
@@ -176,7 +176,7 @@ class XDMFWriter:
         The fields are interpolated into P1 (vertex values) so that dolfinx 0.5 and 0.10 write the same file;
         the contact stress is each constrained vertex's multiplier divided by its lumped measure.
         """
-        d = self.disc
+        d = self.discretisation
         self.uW.x.array[:len(U.array)] = U.array
         self.uW.x.scatter_forward()
         self.u1.interpolate(self.uW)

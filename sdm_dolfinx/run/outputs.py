@@ -22,8 +22,8 @@ class RunFiles:
     """
 
     def __init__(self, out, integ, series, info, fingerprint, restart, write_every, dt):
-        disc = integ.disc
-        self.comm, self.out, self.info, self.dt = disc.comm, Path(out), info, dt
+        discretisation = integ.discretisation
+        self.comm, self.out, self.info, self.dt = discretisation.comm, Path(out), info, dt
         self.write_every = write_every or 10
         comm, out = self.comm, self.out
         if comm.rank == 0:
@@ -40,8 +40,8 @@ class RunFiles:
                 checkpoint.truncate_xdmf(out / "solution.xdmf", first * dt, comm)
         append = restart is not None
         self.csv = CSVWriter(out / "timeseries.csv", series.columns, comm, append=append)
-        self.xdmf = XDMFWriter(out / "solution.xdmf", disc, integ, append=append and outputs["solution"])
-        self.state = StateWriter(out / "state.h5", disc, integ, fingerprint, append=append and outputs["state"],
+        self.xdmf = XDMFWriter(out / "solution.xdmf", discretisation, integ, append=append and outputs["solution"])
+        self.state = StateWriter(out / "state.h5", discretisation, integ, fingerprint, append=append and outputs["state"],
                                  last_step=first)
         self.state_missing = append and not outputs["state"]
 

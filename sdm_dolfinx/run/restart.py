@@ -42,7 +42,7 @@ def resume(out, identity, fields, integ, nsteps, comm):
             f"{Path(out) / 'run.json'} (run_id {meta.get('run_id')} vs {previous})")
     outputs = checkpoint.check_outputs(out, meta["step"], comm)     # may move damaged files aside
     checkpoint.restore(data, fields, comm)
-    integ.active = checkpoint.active_mask(data, integ.disc.cx)
+    integ.active = checkpoint.active_mask(data, integ.discretisation.cx)
     first = meta["step"]
     if outputs["moved"] and comm.rank == 0:
         print(f"warning: {', '.join(n.replace('.damaged', '') for n in outputs['moved'] if n.endswith('.h5'))} "
@@ -55,4 +55,4 @@ def resume(out, identity, fields, integ, nsteps, comm):
 def save(out, identity, step, dt, run_id, fields, integ, comm):
     """Write ``out/checkpoint.npz`` for the state after ``step`` (collective)."""
     meta = {"identity": identity, "step": step, "t": step * dt, "run_id": run_id}
-    checkpoint.save(out, comm, fields, integ.disc.cx[:, integ.active].T, meta)
+    checkpoint.save(out, comm, fields, integ.discretisation.cx[:, integ.active].T, meta)

@@ -42,7 +42,7 @@ class TimeSeries:
         if "momentum_y" in self.columns:
             row["momentum_y"] = integ.momentum(V, self.problem.momentum_component)
         if "elastic" in self.columns:            # 1/2 U^T A U = potential + U^T L
-            row["elastic"] = pot + U.dot(integ.disc.L)
+            row["elastic"] = pot + U.dot(integ.discretisation.L)
         row["linear_its_total"] = integ.linear_its
         if not np.isfinite(row["energy"]):
             raise StepError(f"step {n} (t = {t:.6g}): the energy is not finite ({row['energy']})")

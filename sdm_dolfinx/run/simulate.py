@@ -76,7 +76,7 @@ class _Loop:
 
     def __init__(self, problem, pair, scheme, dt, T, mass, vi_solver, linear, petsc_options, wall0):
         self.wall0, self.dt, self.comm = wall0, dt, problem.mesh.comm
-        self.disc = d = Discretisation(problem, pair, mass)
+        self.discretisation = d = Discretisation(problem, pair, mass)
         try:
             self.integ = Integrator(d, scheme, dt, vi_solver, linear, petsc_options)
         except PETSc.Error as e:            # e.g. a -sdm_ option PETSc does not accept
@@ -98,12 +98,13 @@ class _Loop:
 
     def open(self, out, restart, write_every, extra_info):
         """run.json's first version, the restart (if any) and the files (if ``out``)."""
-        d, integ = self.disc, self.integ
+        d, integ = self.discretisation, self.integ
         self.info = {**self.identity, "T": self.nsteps * self.dt, "steps": self.nsteps, **d.dims(),
                      "versions": compat.versions(), "displacement_reported": "U^{n+1} (end of step)",
                      "constraint_imposed_on": integ.time_scheme.constrained,
                      "lambda_probe": {"vertex": self.cprobe.vertex[:2].tolist(),
                                       "definition": "nodal multiplier / lumped nodal measure (>= 0: obstacle pushes)"},
+                     "solver_options_prefix": getattr(integ.solver, "prefix", None),
                      "status": "running", **extra_info}
         self.out, self.restarted, self.first = out, bool(restart), 0
         if restart:
@@ -127,7 +128,7 @@ class _Loop:
     def run(self, progress, on_step, checkpoint_every, handle_signals, constraint_tol):
         """Steps first..nsteps; a failed step leaves the files at the last good step."""
         files, stop, n = self.files, StopFlag(handle_signals), self.first
-        scale = max(self.comm.allreduce(float(np.max(np.abs(self.disc.lb), initial=0.0)), op=MPI.MAX), 1.0)
+        scale = max(self.comm.allreduce(float(np.max(np.abs(self.discretisation.lb), initial=0.0)), op=MPI.MAX), 1.0)
         saved = None
         try:
             if not self.restarted:
@@ -206,7 +207,7 @@ class _Loop:
         if self.files is not None:
             self.files.update()
         self.integ.destroy()
-        return Result(self.series.data, self.info, self.gap_imposed, self.gap_end, self.U, self.V, self.disc)
+        return Result(self.series.data, self.info, self.gap_imposed, self.gap_end, self.U, self.V, self.discretisation)
 
 
 def _petsc_message(e):

@@ -73,6 +73,10 @@ def test_problem_file_round_trip(mpi_tmp_path, capsys):
     assert cli.main(["energy", str(ref)]) == 0
     # inspect on the file's problem
     assert cli.main(["inspect", "--problem-file", str(f), "--n", "2", "--pair", "P2/P1"]) == 0
+    # a picture of the deformed block (von Mises from the problem's lame_lambda, lame_mu)
+    assert cli.main(["render", str(ref), "--png", str(mpi_tmp_path / "block.png"), "--size", "320", "240"]) == 0
+    if COMM.rank == 0:
+        assert (mpi_tmp_path / "block.png").stat().st_size > 1000
 
 
 def test_problem_file_errors_are_one_line(mpi_tmp_path, capsys):

@@ -23,25 +23,21 @@ global matrices, so 1 and 2 ranks give the same numbers up to round-off:
   S = I - Y^T (B B^T)^-1 Y with Y = B G^T, formed densely for N_g <= ``dense_max`` or else ARPACK on S.
   S's smallest eigenvalue is then accurate to about eps, so beta resolves down to about sqrt(eps).
 
-Command line: ``python -m sdm_dolfinx inspect --problem membrane --pair P2/P1 --N 8 [--sweep] [--json F]``.
+The report, the sweep table and the beta-h plot: :mod:`.infsup_report`; the command line:
+``python -m sdm_dolfinx inspect membrane --pair P2/P1 --N 8 [--sweep] [--json F]`` (:mod:`sdm_dolfinx.cli.inspect`).
 """
-import argparse
 import gc
-import json
 import math
-import os
-import sys
 import time
-from pathlib import Path
 
 from mpi4py import MPI
 
 import numpy as np
 
-from . import compat
-from .disc_mesh import MeshError
-from .discretisation import Discretisation
-from .pairs import PAIRS, get_pair
+from sdm_dolfinx import compat
+from sdm_dolfinx.method.discretisation import Discretisation
+from sdm_dolfinx.method.pairs import get_pair
+from sdm_dolfinx.mpiutil import gather_rows
 
 EPS = np.finfo(float).eps
 #: beta <= TOL counts as beta = 0: the iterative path resolves beta only to about sqrt(eps) (it gets
@@ -54,9 +50,6 @@ DENSE_MAX = 1500
 #: matrix's eigenvalues are accurate to about eps lambda_max, so sigma ratios to about sqrt(eps))
 RANK_TOL = 100.0 * math.sqrt(EPS)
 
-#: the mesh parameter a sweep varies, and its default values, per problem name
-SWEEPS = {"membrane": ("N", (4, 8, 16, 32, 64)), "disc": ("level", (1, 2, 3))}
-
 
 class InspectError(RuntimeError):
     """The measurement cannot be made (e.g. B rank deficient beyond the dense path's size)."""
@@ -68,11 +61,11 @@ def _gather_csr(A, comm):
     import scipy.sparse as sp
     r0, r1 = A.getOwnershipRange()
     indptr, indices, data = A.getValuesCSR()
-    rows = np.repeat(np.arange(r0, r1, dtype=np.int64), np.diff(indptr))
-    parts = comm.gather((rows, np.asarray(indices, dtype=np.int64), np.asarray(data, dtype=float)), root=0)
+    rows = gather_rows(np.repeat(np.arange(r0, r1, dtype=np.int64), np.diff(indptr)), comm)
+    cols = gather_rows(np.asarray(indices, dtype=np.int64), comm)
+    vals = gather_rows(np.asarray(data, dtype=float), comm)
     if comm.rank != 0:
         return None
-    rows, cols, vals = (np.concatenate(x) for x in zip(*parts))
     M = sp.csr_matrix((vals, (rows, cols)), shape=A.getSize())
     M.eliminate_zeros()
     return M
@@ -80,8 +73,8 @@ def _gather_csr(A, comm):
 
 def _gather_global(local, offset, comm):
     """Owned local indices + this rank's global offset, gathered and sorted on rank 0 (None elsewhere)."""
-    parts = comm.gather(np.asarray(local, dtype=np.int64) + offset, root=0)
-    return np.sort(np.concatenate(parts)) if comm.rank == 0 else None
+    parts = gather_rows(np.asarray(local, dtype=np.int64) + offset, comm)
+    return np.sort(parts) if comm.rank == 0 else None
 
 
 def cell_diameter(msh):
@@ -319,270 +312,3 @@ def sweep(make_problem, values, pairs, tol=TOL, dense_max=DENSE_MAX, progress=No
             if progress:
                 progress(r)
     return rows
-
-
-# ------------------------------------------------------------------------------------- output
-def _fmt_beta(b):
-    return "inf" if b is None else f"{b:.6g}"
-
-
-def report(r):
-    """A human-readable block for one result."""
-    names = {"N": "N", "level": "level", "h": "mesh size parameter", "diagonal": "diagonal", "mesh_file": "mesh"}
-    par = ", ".join(f"{names[k]} = {v}" for k, v in r["parameters"].items() if k in names and v is not None)
-    lines = [
-        f"{r['problem']} ({par}; largest cell diameter {r['h']:.4g}), pair {r['pair']}, {r['ranks']} rank(s)",
-        f"  dim W^h = {r['dim_W']} (Dirichlet dofs removed: {r['n_dirichlet']}), dim H^h = {r['dim_H']}, "
-        f"N_g = {r['N_g']}, dim Ker(B) = {r['dim_ker_B']}",
-        f"  count condition dim H^h <= dim W^h - N_g: {r['dim_H']} <= {r['dim_W'] - r['N_g']}: "
-        f"{'yes' if r['count_condition'] else 'NO'}; dim Ker(B) >= N_g: {'yes' if r['kernel_condition'] else 'NO'}",
-        f"  B: rank {r['rank_B']} of {r['dim_H']} rows: {'surjective' if r['B_surjective'] else 'NOT surjective'} "
-        f"(Remark 1: {'every V0 admissible' if r['B_surjective'] else 'V0 must lie in Im(C^-1 B), eq. (6)'})"
-        f"; sigma_min/sigma_max = {r['sigma_ratio_B']:.3g}",
-        f"  M = B^T C^-1 B: rank {r['rank_M']} of {r['dim_W']}, {'singular' if r['M_singular'] else 'invertible'}"
-        f" [{r['rank_M_method']}]",
-        f"  beta (condition (7), Euclidean norms of coefficient vectors) = {_fmt_beta(r['beta'])}",
-        f"  method: {r['method']} ({r['seconds']:.2f} s)",
-        f"  verdict: {r['verdict'].upper()} (tolerance beta > {r['tolerance']:.1e}): {r['reason']}",
-        f"  the paper: {r['paper']}",
-    ]
-    return "\n".join(lines)
-
-
-SWEEP_HEADER = (f"{'pair':8s} {'param':>6s} {'h':>9s} {'dim W':>7s} {'dim H':>7s} {'N_g':>6s} {'dim Ker B':>9s} "
-                f"{'beta':>10s} {'method':>9s}  verdict")
-
-
-def sweep_line(r):
-    """One line of the ``--sweep`` table for a result row."""
-    return (f"{r['pair']:8s} {str(r['sweep_value']):>6s} {r['h']:9.4g} {r['dim_W']:7d} {r['dim_H']:7d} {r['N_g']:6d} "
-            f"{r['dim_ker_B']:9d} {_fmt_beta(r['beta']):>10s} {r['method_short']:>9s}  {r['verdict']}")
-
-
-def plot_sweep(rows, path, title=""):
-    """Log-log beta against h, one curve per pair; beta <= tol is drawn as crosses on the tolerance line
-    (with the names of the pairs concerned)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    tol = r_tol(rows)
-    fig, ax = plt.subplots(figsize=(6.4, 4.6))
-    ill, ill_h = [], set()
-    for k, name in enumerate(dict.fromkeys(r["pair"] for r in rows)):
-        pts = sorted((r["h"], r["beta"]) for r in rows if r["pair"] == name and r["beta"] is not None)
-        good = [(h, b) for h, b in pts if b > tol]
-        if good:
-            ax.loglog(*zip(*good), "o-", color=f"C{k}", label=name)
-        if len(good) < len(pts):
-            ill.append(name)
-            ill_h.update(h for h, b in pts if b <= tol)
-    if ill:      # pairs with beta <= tol all sit on the tolerance line: one marker for them all
-        ax.loglog(sorted(ill_h), [tol] * len(ill_h), "kx", ms=9, mew=2,
-                  label=r"$\beta \leq$ tol (ill-posed): " + ", ".join(ill))
-    ax.axhline(tol, color="grey", ls="--", lw=0.8, label=f"tolerance {tol:.1e}")
-    ax.set_xlabel("h (largest cell diameter)")
-    ax.set_ylabel(r"$\beta$ of condition (7)")
-    ax.set_title(title)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-
-
-def r_tol(rows):
-    """The verdict tolerance on beta used for ``rows`` (the default when there are none)."""
-    return rows[0]["tolerance"] if rows else TOL
-
-
-# ----------------------------------------------------------------------------------- command line
-def _problems():
-    """The problem modules: the run commands' registry, plus the disc if its module exists."""
-    from .cli import PROBLEMS
-    problems = dict(PROBLEMS)
-    if "disc" not in problems:
-        try:
-            from . import disc
-            if all(hasattr(disc, a) for a in ("add_arguments", "problem_from_args")):
-                problems["disc"] = disc
-        except ImportError:
-            pass
-    return problems
-
-
-def _int_list(text):
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1 (got {v})")
-    return v
-
-
-def _nonneg_float(text):
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not math.isfinite(v) or v < 0:
-        raise argparse.ArgumentTypeError(f"must be a non-negative finite number (got {text})")
-    return v
-
-
-def build_parser(problem, problems):
-    """The ``inspect`` parser, with the options of ``problem`` (one of ``problems``)."""
-    from .cli import _Parser
-    p = _Parser(prog="python -m sdm_dolfinx inspect",
-                description="Measure the inf-sup condition (7) of Renard (2010) for a problem, a pair and a mesh: "
-                            "dimensions, Ker(B), rank of M = B^T C^-1 B, beta and a verdict.",
-                epilog="Only the problem options that change the mesh or the constraint set (the membrane's --N, "
-                       "--diagonal, --no-obstacle; the disc's --level, --h, --radius, --contact-zone, --no-contact) "
-                       "change the result; the others are accepted for symmetry with the run commands.")
-    p.add_argument("--problem", choices=sorted(problems), default="membrane", help="the problem (default membrane)")
-    default_pair = getattr(problems.get(problem), "DEFAULTS", {}).get("pair", "P1+/P0")
-    p.add_argument("--pair", nargs="+", default=[default_pair], metavar="PAIR",
-                   help=f"one or more pairs, or 'all': {', '.join(PAIRS)} (default: the problem's, "
-                        f"{default_pair} for {problem})")
-    param, default_values = SWEEPS.get(problem, ("?", ()))
-    p.add_argument("--sweep", nargs="*", type=_int_list, default=None, metavar="V",
-                   help=f"run a sequence of meshes: values of --{param} (default {' '.join(map(str, default_values))})"
-                        " and print beta against h")
-    p.add_argument("--json", type=Path, default=None, metavar="FILE", help="write the results as JSON")
-    p.add_argument("--png", type=Path, default=None, metavar="FILE",
-                   help="with --sweep: the beta-h plot (default output/inspect/<problem>-beta.png)")
-    p.add_argument("--tol", type=_nonneg_float, default=TOL,
-                   help=f"beta <= tol counts as 0 (default 100 sqrt(eps) = {TOL:.2e})")
-    p.add_argument("--dense-max", type=int, default=DENSE_MAX, metavar="N",
-                   help=f"dense SVD up to dim W^h = N, iterative beyond (default {DENSE_MAX})")
-    problems[problem].add_arguments(p)
-    return p
-
-
-def _check_writable(path, what):
-    from .cli import UsageError
-    if path.exists() and path.is_dir():
-        raise UsageError(f"{what} {path} is a folder")
-    d = path.parent
-    while not d.exists():
-        d = d.parent
-    if not os.access(d, os.W_OK | os.X_OK):
-        raise UsageError(f"cannot write {what} {path} ({d} is not writable)")
-
-
-def _parse(argv, problems):
-    from .cli import UsageError
-    pre = argparse.ArgumentParser(add_help=False)
-    pre.add_argument("--problem", default="membrane")
-    known, _ = pre.parse_known_args(argv)
-    if known.problem not in problems:
-        raise UsageError(f"argument --problem: invalid choice: {known.problem!r} (choose from "
-                         f"{', '.join(sorted(problems))})")
-    parser = build_parser(known.problem, problems)
-    args = parser.parse_args(argv)
-    mod = problems[args.problem]
-    errors = list(mod.check_arguments(args)) if hasattr(mod, "check_arguments") else []
-    pairs = list(PAIRS) if args.pair == ["all"] else args.pair
-    bad = [q for q in pairs if q not in PAIRS]
-    if bad:
-        errors.append(f"unknown pair {bad[0]!r}; choose from {', '.join(PAIRS)} or all")
-    args.pair = list(dict.fromkeys(pairs))
-    if args.dense_max < 0:
-        errors.append(f"--dense-max must be >= 0 (got {args.dense_max})")
-    if args.sweep is not None:
-        if args.problem not in SWEEPS or not hasattr(args, SWEEPS[args.problem][0]):
-            errors.append(f"--sweep is not available for problem {args.problem}")
-        elif not args.sweep:
-            args.sweep = list(SWEEPS[args.problem][1])
-        if args.problem == "disc" and (getattr(args, "h", None) is not None or getattr(args, "mesh", None)):
-            errors.append("--sweep runs the named --level meshes: drop --h/--mesh (or inspect one mesh at a time)")
-    elif args.png is not None:
-        errors.append("--png needs --sweep")
-    if errors:
-        raise UsageError("; ".join(errors))
-    if args.json is not None:
-        _check_writable(args.json, "--json")
-    if args.sweep is not None:
-        args.png = args.png or Path("output") / "inspect" / f"{args.problem}-beta.png"
-        _check_writable(args.png, "--png")
-    return args, mod
-
-
-def main(argv=None):
-    """``python -m sdm_dolfinx inspect ...``: returns the exit status (0, 1 failed measurement, 2 bad input)."""
-    from .cli import UsageError, report_usage_error
-    comm = MPI.COMM_WORLD
-    argv = sys.argv[1:] if argv is None else list(argv)
-    prog = "python -m sdm_dolfinx inspect"
-    problems = _problems()
-    try:
-        if argv and argv[0] in ("-h", "--help") or "-h" in argv or "--help" in argv:
-            pre = argparse.ArgumentParser(add_help=False)
-            pre.add_argument("--problem", default="membrane")
-            name = pre.parse_known_args(argv)[0].problem
-            if comm.rank == 0:
-                build_parser(name if name in problems else "membrane", problems).print_help()
-            return 0
-        args, mod = _parse(argv, problems)
-    except UsageError as e:
-        return report_usage_error(prog, e, comm)
-
-    def say(text):
-        if comm.rank == 0:
-            print(text, flush=True)
-
-    def make_problem(value=None):
-        if value is not None:
-            setattr(args, SWEEPS[args.problem][0], value)
-            if args.problem == "disc" and hasattr(args, "h"):
-                args.h = None             # the level sets the mesh size
-        return mod.problem_from_args(args, comm)
-
-    try:
-        if args.sweep is None:
-            rows = []
-            problem = make_problem()
-            for pair in args.pair:
-                r = inspect(problem, pair, tol=args.tol, dense_max=args.dense_max)
-                rows.append(r)
-                say(report(r))
-        else:
-            param = SWEEPS[args.problem][0]
-            say(f"sweep of {args.problem} over --{param} = {' '.join(map(str, args.sweep))} on {comm.size} rank(s); "
-                f"beta of condition (7), tolerance {args.tol:.1e}")
-            say(SWEEP_HEADER.replace("param", param))
-            rows = sweep(make_problem, args.sweep, args.pair, tol=args.tol, dense_max=args.dense_max,
-                         progress=lambda r: say(sweep_line(r)))
-    except InspectError as e:
-        if comm.rank == 0:
-            print(f"{prog}: error: {e}", file=sys.stderr, flush=True)
-        return 1
-    except MeshError as e:              # a --mesh file that cannot be used: bad input
-        if comm.rank == 0:
-            print(f"{prog}: error: {e}", file=sys.stderr, flush=True)
-        return 2
-    if comm.rank == 0:
-        if args.sweep is not None:
-            args.png.parent.mkdir(parents=True, exist_ok=True)
-            plot_sweep(rows, args.png, title=f"{args.problem}: inf-sup constant of condition (7)")
-            print(f"wrote {args.png}", flush=True)
-        if args.json is not None:
-            args.json.parent.mkdir(parents=True, exist_ok=True)
-            doc = {"command": " ".join(["python -m sdm_dolfinx inspect"] + argv), "ranks": comm.size,
-                   "tolerance": args.tol, "dense_max": args.dense_max, "versions": compat.versions(),
-                   "results": rows}
-            args.json.write_text(json.dumps(doc, indent=1, default=_json_default) + "\n")
-            print(f"wrote {args.json}", flush=True)
-    return 0
-
-
-def _json_default(o):
-    if isinstance(o, (np.integer,)):
-        return int(o)
-    if isinstance(o, (np.floating,)):
-        return float(o)
-    if isinstance(o, (np.bool_,)):
-        return bool(o)
-    if isinstance(o, Path):
-        return str(o)
-    raise TypeError(f"not JSON serialisable: {type(o)}")

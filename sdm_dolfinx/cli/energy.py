@@ -1,0 +1,53 @@
+"""``python -m sdm_dolfinx energy DIR``: a finished run's energy history recomputed from its
+``state.h5`` (:func:`sdm_dolfinx.post.recompute_energy`), for any declared problem (the run's
+problem is rebuilt from its ``run.json`` through the registry, a problem file included).
+
+Bad input (not a run folder, a problem that cannot be rebuilt): one line, exit status 2.
+"""
+import sys
+from pathlib import Path
+
+from mpi4py import MPI
+
+import numpy as np
+
+from sdm_dolfinx.cli.common import Parser, UsageError, parse_or_help, report_usage_error, say_error
+from sdm_dolfinx.post import PostprocessError, recompute_energy
+
+PROG = "python -m sdm_dolfinx energy"
+#: the files a run folder must hold
+RUN_FILES = ("run.json", "timeseries.csv", "state.h5")
+
+
+def build_parser():
+    p = Parser(prog=PROG, description="Recompute the energy history of a run from its state.h5 "
+               "(independently of the run's own diagnostics), write DIR/energy_recomputed.csv and "
+               "print the largest relative difference to DIR/timeseries.csv.")
+    p.add_argument("folder", type=Path, metavar="DIR", help="a run's output folder")
+    return p
+
+
+def main(argv=None):
+    """``python -m sdm_dolfinx energy DIR``: returns the exit status (0, 2 bad input)."""
+    comm = MPI.COMM_WORLD
+    argv = sys.argv[1:] if argv is None else list(argv)
+    try:
+        args = parse_or_help(build_parser(), argv, comm)
+        if args is None:
+            return 0
+        for name in RUN_FILES:
+            if not (args.folder / name).exists():
+                raise UsageError(f"{args.folder} has no {name} (not the output folder of a run)")
+    except UsageError as e:
+        return report_usage_error(PROG, e, comm)
+    try:
+        res = recompute_energy(args.folder, comm)
+    except PostprocessError as e:
+        return say_error(PROG, e, comm, 2)
+    if comm.rank == 0:
+        eps = np.finfo(np.dtype(res["stored_dtype"])).eps
+        print(f"{args.folder}: energy of {len(res['step'])} stored states -> {args.folder}/energy_recomputed.csv; "
+              f"max relative difference to timeseries.csv: {res['max_rel_diff']:.3e} "
+              f"({res['max_roundoff_ratio'] / eps:.3g} eps of the round-off scale; {res['rows']} common steps; "
+              f"state.h5 stores {res['stored_dtype']}, eps = {eps:.1e})", flush=True)
+    return 0
