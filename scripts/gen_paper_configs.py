@@ -4,7 +4,7 @@ configuration files, from the study that ``python -m sdm_dolfinx figures`` runs.
     .venv/bin/python scripts/gen_paper_configs.py           # rewrite data/paper/*.toml
     .venv/bin/python scripts/gen_paper_configs.py --check   # exit 1 if data/paper is out of date
 
-One source of truth: ``sdm_dolfinx.figures.make_study`` defines the runs (the paper's mesh
+One source of truth: ``sdm_dolfinx.paper.study.make_study`` defines the runs (the paper's mesh
 diagonals, the consistent C of P1 velocities as in the paper's program, the write interval),
 so ``membrane --config data/paper/X.toml`` computes exactly the run the report shows.
 """
@@ -18,8 +18,8 @@ DATA = ROOT / "data" / "paper"
 
 def expected():
     sys.path.insert(0, str(ROOT))
-    from sdm_dolfinx import figures
-    return figures.paper_configurations()
+    from sdm_dolfinx.paper import study
+    return study.paper_configurations()
 
 
 def differences(files):

@@ -7,7 +7,8 @@ from mpi4py import MPI
 import numpy as np
 import pytest
 
-from sdm_dolfinx import cli, figures
+from sdm_dolfinx import cli
+from sdm_dolfinx.paper import metrics, runs as study_runs, study
 
 COMM = MPI.COMM_WORLD
 
@@ -65,43 +66,69 @@ def test_quick_study_end_to_end(tmp_path, capsys):
 def test_fitted_rate_of_synthetic_errors():
     """Errors C h^0.69 at the levels of Table 2 give back 0.69 (to 1e-6) from every fit."""
     levels = [1, 2, 3, 4, 5]
-    h = {lev: figures.PAPER_TABLE2[lev][1] for lev in levels}
+    h = {lev: study.PAPER_TABLE2[lev][1] for lev in levels}
     err = {lev: 0.0586 * (h[lev] / 2.0) ** 0.69 for lev in levels[:-1]}
     dofs = {lev: int(622 * 4 ** (lev - 1)) for lev in levels}          # h ~ dofs^(-1/2)
-    r = figures.fit_rates(levels, 5, err, err, dofs)
+    r = metrics.fit_rates(levels, 5, err, err, dofs)
     assert r["fit_levels"] == [1, 2, 3]                  # the paper left out the level next to its reference
     assert abs(r["rate"] - 0.69) < 1e-6 and abs(r["rate_all_levels"] - 0.69) < 1e-6
     err_d = {lev: 0.05 * dofs[lev] ** (-0.69 / 2) for lev in levels[:-1]}
-    assert abs(figures.fit_rates(levels, 5, err_d, err_d, dofs)["rate_from_dofs"] - 0.69) < 1e-6
+    assert abs(metrics.fit_rates(levels, 5, err_d, err_d, dofs)["rate_from_dofs"] - 0.69) < 1e-6
 
 
 def test_counting_condition_of_the_pairs():
     """dim H <= dim W - N_g (necessary for (7)): P1+/P0 with equality, P1/P0 never, P2/P1 from N = 3."""
-    assert figures.counting_condition("P1+/P0", 10) == (200, 200)
-    assert figures.counting_condition("P1/P0", 10) == (200, 0)
-    assert figures.counting_condition("P2/P1", 2) == (9, 8)
-    assert figures.counting_condition("P2/P1", 4) == (25, 40)
+    assert metrics.counting_condition("P1+/P0", 10) == (200, 200)
+    assert metrics.counting_condition("P1/P0", 10) == (200, 0)
+    assert metrics.counting_condition("P2/P1", 2) == (9, 8)
+    assert metrics.counting_condition("P2/P1", 4) == (25, 40)
 
 
 def test_up_to_date_runs_are_recognised(mpi_tmp_path):
     """A study reruns only what is missing: finished/failed runs with the same options are
-    kept; other options, or an interrupted run without checkpoint, are redone."""
-    run = figures.membrane_run("P1+/P0", 4, 0.01, 0.3)
+    kept; other options, or an interrupted run without checkpoint, are redone. A run made
+    from the command line with the run's TOML file (as in data/paper) counts as the same run."""
+    run = study.membrane_run("P1+/P0", 4, 0.01, 0.3)
     folder = mpi_tmp_path / run.name
     if COMM.rank == 0:
-        assert figures.run_state(folder, run, COMM.size) == "missing"
-    status = cli.main(run.argv(folder) + ["--quiet"])
+        assert study_runs.run_state(folder, run, COMM.size) == "missing"
+        (mpi_tmp_path / "run.toml").write_text(study.config_text(run, "test"))
+    COMM.Barrier()
+    status = cli.main([run.problem, "--config", str(mpi_tmp_path / "run.toml"), "--out", str(folder), "--quiet"])
     assert status == 0
     if COMM.rank == 0:
-        assert figures.run_state(folder, run, COMM.size) == "finished"
-        assert figures.run_state(folder, figures.membrane_run("P1+/P0", 4, 0.02, 0.3), COMM.size) == "stale"
+        assert study_runs.run_state(folder, run, COMM.size) == "finished"
+        assert study_runs.run_state(folder, study.membrane_run("P1+/P0", 4, 0.02, 0.3), COMM.size) == "stale"
+        assert study_runs.run_state(folder, study.membrane_run("P1+/P0", 5, 0.01, 0.3), COMM.size) == "stale"
         info = json.loads((folder / "run.json").read_text())
         info["status"] = "interrupted"
         (folder / "run.json").write_text(json.dumps(info))
-        assert figures.run_state(folder, run, COMM.size) == "stale"
+        assert study_runs.run_state(folder, run, COMM.size) == "stale"
         (folder / "checkpoint.npz").write_bytes(b"")
-        assert figures.run_state(folder, run, COMM.size) == "resumable"
-        assert figures.run_state(folder, run, COMM.size + 1) == "stale"      # restarts need the same ranks
+        assert study_runs.run_state(folder, run, COMM.size) == "resumable"
+        assert study_runs.run_state(folder, run, COMM.size + 1) == "stale"      # restarts need the same ranks
+
+
+def test_study_runs_through_launch(mpi_tmp_path):
+    """The study computes a run with sdm_dolfinx.run.launch; a run that cannot continue from its
+    (damaged) checkpoint starts again; the result is the same as from scratch."""
+    run = study.membrane_run("P1+/P0", 4, 0.01, 0.1)
+    folder = mpi_tmp_path / run.name
+    assert study_runs.compute(run, folder, "missing", COMM, say=lambda s: None) == "finished"
+    last_energy = lambda: float((folder / "timeseries.csv").read_text().splitlines()[-1].split(",")[2])  # noqa: E731
+    ref = last_energy() if COMM.rank == 0 else None
+    if COMM.rank == 0:
+        assert study_runs.run_state(folder, run, COMM.size) == "finished"
+        info = json.loads((folder / "run.json").read_text())
+        info["status"] = "interrupted"
+        (folder / "run.json").write_text(json.dumps(info))
+        (folder / "checkpoint.npz").write_bytes(b"not a checkpoint")
+    COMM.Barrier()
+    records = study_runs.ensure_runs([run], mpi_tmp_path, COMM, say=lambda s: None)
+    assert records[run.name]["state"] == "finished" and not records[run.name]["cached"]
+    if COMM.rank == 0:
+        assert study_runs.run_state(folder, run, COMM.size) == "finished"
+        assert last_energy() == ref
 
 
 def test_dry_run_prints_plan_and_estimate(mpi_tmp_path, capsys):

@@ -1,0 +1,269 @@
+"""The study: which runs reproduce the paper's figures and tables, and their TOML files.
+
+A :class:`Run` is a problem name, its parameter values and the run options of
+:func:`sdm_dolfinx.run.launch`; :func:`make_study` lays out the runs behind every figure
+(the full study with the paper's parameters, or the quick smoke test), and
+:func:`paper_configurations` writes the full study's runs as the ``data/paper/*.toml``
+files that ``python -m sdm_dolfinx PROBLEM --config FILE`` reads.
+"""
+import json
+import math
+from dataclasses import dataclass, field
+
+from sdm_dolfinx import problems
+from sdm_dolfinx.problems.disc_mesh import LEVEL_DOFS, LEVELS
+from sdm_dolfinx.run import num_steps
+
+# ----------------------------------------------------------------------------- the paper
+#: the pairs of Figs. 2-6 in the paper's order, and their figure numbers
+MEMBRANE_PAIRS = {"P1+/P0": 2, "P1/P0": 3, "P1/P1": 4, "P1+/P1": 5, "P2/P1": 6}
+#: backward Euler figures
+BE_PAIRS = {"P1+/P0": 7, "P1/P0": 8}
+#: well-posed (condition (7) proved or observed) or not, as the paper says
+WELL_POSED = {"P1+/P0": True, "P1/P0": False, "P1/P1": False, "P1+/P1": True, "P2/P1": True, "P2/P2": False}
+#: Table 2 of the paper: level -> (dt, h in mm, dofs, relative H1 error in % or None)
+PAPER_TABLE2 = {1: (8e-4, 2.0, 622, 5.86), 2: (4e-4, 1.0, 2782, 4.41), 3: (2e-4, 0.5, 11306, 2.57),
+                4: (1e-4, 0.25, 45706, 1.42), 5: (5e-5, 0.14, 126892, 0.43), 6: (2.5e-5, 0.07, 511386, None)}
+PAPER_RATE = 0.69
+
+#: the paper's program (GetFEM): the "regular simplices" mesh of the unit square, which is
+#: dolfinx's left_right diagonal pattern, and the midpoint scheme applied to the (U, V) system
+#: (4) with the consistent C of a P1 velocity (never forming M)
+MEMBRANE_DIAGONAL = "left_right"
+#: run options written before the problem's parameters in a TOML file (the rest after them)
+_HEAD_OPTIONS = ("pair", "mass", "scheme")
+
+
+def slug(pair):
+    """A pair's name in file names: ``P1+/P0`` -> ``P1plus-P0``."""
+    return pair.replace("/", "-").replace("+", "plus")
+
+
+# --------------------------------------------------------------------------------- runs
+@dataclass(frozen=True)
+class Run:
+    """One run of the study: ``launch(problem, params, **options)``.
+
+    ``params`` (the problem's declared parameters) and ``options`` (run options of
+    :func:`sdm_dolfinx.run.launch`) are what define the run's results and files; a folder
+    holding a run with the same values is up to date.
+    """
+    name: str
+    problem: str
+    params: dict
+    options: dict
+
+    @property
+    def steps(self):
+        return num_steps(self.options["T"], self.options["dt"])
+
+    def config(self):
+        """The run as TOML keys (the command-line options without ``--``) -> values, in the
+        order of the paper's configuration files."""
+        spec = problems.get(self.problem)
+        opt = {k.replace("_", "-"): v for k, v in self.options.items()}
+        head = [(k, v) for k, v in opt.items() if k in _HEAD_OPTIONS]
+        tail = [(k, v) for k, v in opt.items() if k not in _HEAD_OPTIONS]
+        return dict(head + [(spec.param(k).option, v) for k, v in self.params.items()] + tail)
+
+    def command_line(self):
+        """``PROBLEM --option value ...``: the command that computes the same run (without --out)."""
+        args = [self.problem]
+        for k, v in self.config().items():
+            args += [f"--{k}", repr(v) if isinstance(v, float) else str(v)]
+        return " ".join(args)
+
+    def matches(self, info):
+        """True when ``info`` (a run.json) describes this run: same problem, and the same
+        values of every parameter and run option this run sets."""
+        described = info.get("problem") or {}
+        args, opts = described.get("args"), info.get("run_options")
+        if described.get("name") != self.problem or args is None or opts is None:
+            return False
+        return (all(_same(args.get(k), v) for k, v in self.params.items())
+                and all(_same(opts.get(k), v) for k, v in self.options.items()))
+
+    @property
+    def dim(self):
+        """dim W^h (for the cost estimate)."""
+        if self.problem == "disc":
+            lev = self.params["level"]
+            return LEVEL_DOFS.get(lev, 4 * LEVEL_DOFS[6] * 4 ** (lev - 6))
+        n = self.params["N"]
+        pair = self.options["pair"]
+        if pair.startswith("P2"):
+            return (2 * n + 1) ** 2
+        return (n + 1) ** 2 + (2 * n * n if pair.startswith("P1+") else 0)
+
+    def estimate(self):
+        """Seconds, serial, on the reference machine (2 cores shared with other work): a fit
+        to the wall times of a full study's runs (a quiet machine is faster)."""
+        d = self.dim
+        if self.problem == "disc":       # levels 3-6 with --linear auto: 9 s, 51 s, 4.4 min, 26 min
+            return 1.0 + 1.5e-4 * d + self.steps * 3e-5 * d ** 0.84
+        return 1.0 + self.steps * (1.5e-3 + 3e-6 * d)
+
+
+def _same(a, b):
+    """Equal values; floats to round-off (a value read back from JSON)."""
+    if isinstance(b, float) or isinstance(a, float):
+        try:
+            return math.isclose(float(a), float(b), rel_tol=1e-12, abs_tol=0.0)
+        except (TypeError, ValueError):
+            return False
+    return a == b
+
+
+def _write_every(steps, states=100):
+    return max(1, steps // states)
+
+
+def _mass(pair):
+    """The paper's program uses the consistent C of a P1 velocity (P1+/P1, P2/P1)."""
+    return {"mass": "consistent"} if pair.endswith("/P1") and not pair.startswith("P1/") else {}
+
+
+def membrane_run(pair, N, dt, T, scheme="midpoint", write_every=None):
+    """The membrane on the paper's mesh (h = 1/N)."""
+    k = write_every or _write_every(num_steps(T, dt))
+    sch = "mp" if scheme == "midpoint" else "be"
+    name = f"membrane_{slug(pair)}_{sch}_N{N}_dt{dt:.6g}_T{T:g}_w{k}"
+    return Run(name, "membrane", {"N": N, "diagonal": MEMBRANE_DIAGONAL},
+               {"pair": pair, **_mass(pair), "scheme": scheme, "dt": float(dt), "T": float(T), "write_every": k})
+
+
+def disc_run(pair, level, dt, T=0.02, write_every=None):
+    """The falling disc on the mesh ``level`` (Table 2)."""
+    k = write_every or _write_every(num_steps(T, dt))
+    name = f"disc_{slug(pair)}_L{level}_dt{dt:.6g}_T{T:g}_w{k}"
+    return Run(name, "disc", {"level": level},
+               {"pair": pair, **_mass(pair), "scheme": "midpoint", "dt": float(dt), "T": float(T), "write_every": k})
+
+
+# -------------------------------------------------------------------------------- study
+@dataclass
+class Study:
+    """The runs behind each figure (same run objects where figures share a run)."""
+    quick: bool
+    membrane_T: float
+    pairs: dict = field(default_factory=dict)       # pair -> {dt: Run} (midpoint, N = 10)
+    be: dict = field(default_factory=dict)          # pair -> {dt: Run}
+    fig9: dict = field(default_factory=dict)        # N -> Run
+    fig10: dict = field(default_factory=dict)       # pair -> {N: Run}
+    fig11: dict = field(default_factory=dict)       # pair -> {N: {ratio: Run}}
+    fig1: Run = None
+    disc: dict = field(default_factory=dict)        # pair -> {dt: Run} (level 1)
+    conv: dict = field(default_factory=dict)        # level -> Run
+    conv_levels_shown: tuple = ()
+
+    def runs(self):
+        """Every run once, cheapest figures first."""
+        seen = {}
+        groups = [*self.pairs.values(), *self.be.values(), self.fig9, *self.fig10.values(),
+                  *(dd for d in self.fig11.values() for dd in d.values())]
+        for group in groups:
+            for r in group.values():
+                seen.setdefault(r.name, r)
+        seen.setdefault(self.fig1.name, self.fig1)
+        for d in self.disc.values():
+            for r in d.values():
+                seen.setdefault(r.name, r)
+        for lev in sorted(self.conv):
+            seen.setdefault(self.conv[lev].name, self.conv[lev])
+        return list(seen.values())
+
+
+def make_study(quick=False, disc_max_level=None):
+    """The runs of the full study (the paper's parameters) or of the quick one."""
+    T = 0.5 if quick else 0.8          # quick: the first impact (t ~ 0.26) and the rebound
+    s = Study(quick=quick, membrane_T=T)
+    dts = (1e-2, 1e-3) if quick else (1e-2, 1e-3, 1e-4)
+    for pair in MEMBRANE_PAIRS:
+        s.pairs[pair] = {dt: membrane_run(pair, 10, dt, T) for dt in dts}
+    for pair in BE_PAIRS:
+        s.be[pair] = {dt: membrane_run(pair, 10, dt, T, "backward-euler") for dt in dts}
+    for N in ((10, 20) if quick else (10, 20, 40, 80)):
+        s.fig9[N] = membrane_run("P1/P0", N, 1e-3, T, "backward-euler")
+    ratio10 = 5e-3
+    for pair in ("P1+/P0", "P2/P1"):
+        s.fig10[pair] = {N: membrane_run(pair, N, ratio10 / N, T) for N in ((2, 4, 8) if quick else (2, 4, 8, 16))}
+        Ns = (2, 4, 8) if quick else (4, 8, 16, 32)
+        ratios = (0.04, 0.01, 0.005) if quick else (0.08, 0.04, 0.02, 0.01, 0.005)
+        s.fig11[pair] = {N: {r: membrane_run(pair, N, r / N, T) for r in ratios} for N in Ns}
+    s.fig1 = (s.pairs["P1+/P0"][1e-3] if quick else membrane_run("P1+/P0", 20, 1e-3, 0.4, write_every=5))
+    for pair in ("P2/P2", "P2/P1"):
+        s.disc[pair] = {dt: disc_run(pair, 1, dt) for dt in (1e-4, 1e-5)}
+    top = disc_max_level or (3 if quick else 6)
+    if top not in LEVELS or top < 2:
+        raise ValueError(f"--disc-max-level must be one of {', '.join(map(str, sorted(LEVELS)[1:]))}")
+    for lev in range(1, top + 1):
+        dt = 8e-4 / 2 ** (lev - 1)
+        s.conv[lev] = disc_run("P2/P1", lev, dt, write_every=_write_every(num_steps(0.02, dt), 20))
+    # the paper shows three solutions a factor 4 apart in dt (levels 2, 4, 6 of Table 2)
+    s.conv_levels_shown = (top - 4, top - 2, top) if top >= 5 else tuple(range(1, top + 1))
+    return s
+
+
+# ------------------------------------------------------------------- data/paper/*.toml
+def _toml_value(v):
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, float):
+        return repr(v)
+    return str(v)
+
+
+def config_text(run, title):
+    """The TOML file of ``run`` (``python -m sdm_dolfinx PROBLEM --config FILE`` computes it)."""
+    lines = [f"# Renard 2010, {title}", "# generated from sdm_dolfinx.paper.study.make_study by "
+             "scripts/gen_paper_configs.py: do not edit by hand",
+             f"# python -m sdm_dolfinx {run.problem} --config THIS_FILE --out DIR", f'problem = "{run.problem}"']
+    lines += [f"{k} = {_toml_value(v)}" for k, v in run.config().items()]
+    return "\n".join(lines) + "\n"
+
+
+def _dt(dt):
+    return f"{dt:.0e}".replace("e-0", "e-") if float(f"{dt:.0e}") == dt else f"{dt:g}"
+
+
+def paper_configurations(study=None):
+    """The runs of the full study (the paper's figures and tables) as TOML configuration
+    files: file name -> text. ``data/paper/`` holds exactly these (a test checks it)."""
+    s = study or make_study()
+    out = {}
+
+    def put(name, run, title):
+        if run.problem == "membrane":
+            o, p = run.options, run.params
+            mesh = f"h = 1/{p['N']} ({p['diagonal']} diagonals)"
+            mass = ", consistent C (the (U, V) system (4))" if o.get("mass") == "consistent" else ""
+            title = f"{title}: {o['pair']}{mass}, {o['scheme']}, {mesh}, dt = {o['dt']:g}"
+        out[name + ".toml"] = config_text(run, title)
+
+    put("membrane_fig01_P1plus-P0_N20", s.fig1, "Fig. 1 (the membrane during its first impact)")
+    for pair, fig in MEMBRANE_PAIRS.items():
+        for dt, run in s.pairs[pair].items():
+            put(f"membrane_fig{fig:02d}_{slug(pair)}_dt{_dt(dt)}", run, f"Fig. {fig}")
+    for pair, fig in BE_PAIRS.items():
+        for dt, run in s.be[pair].items():
+            put(f"membrane_fig{fig:02d}_{slug(pair)}_be_dt{_dt(dt)}", run, f"Fig. {fig}")
+    for N, run in s.fig9.items():
+        put(f"membrane_fig09_P1-P0_be_N{N}", run, "Fig. 9")
+    for pair, runs in s.fig10.items():
+        for N, run in runs.items():
+            put(f"membrane_fig10_{slug(pair)}_N{N}", run, "Fig. 10 (dt/h fixed)")
+    for pair, by_N in s.fig11.items():
+        for N, runs in by_N.items():
+            for ratio, run in runs.items():
+                put(f"membrane_fig11_{slug(pair)}_N{N}_dt-over-h{ratio:g}", run, f"Fig. 11 (dt/h = {ratio:g})")
+    for pair, fig in (("P2/P2", 14), ("P2/P1", 15)):
+        for dt, run in s.disc[pair].items():
+            mass = ", consistent C" if run.options.get("mass") == "consistent" else ", standard mass"
+            put(f"disc_table1_fig{fig}_{slug(pair)}_dt{_dt(dt)}", run,
+                f"Table 1 and Fig. {fig}: the disc, {pair}{mass}, midpoint, level 1 (h ~ 2 mm), dt = {dt:g} s")
+    for lev, run in s.conv.items():
+        dt, h, dofs = PAPER_TABLE2[lev][:3]
+        put(f"disc_table2_level{lev}", run,
+            f"Table 2, line {lev} (Fig. 16): P2/P1, consistent C, midpoint, h = {h:g} mm ({dofs} dofs in the paper), "
+            f"dt = {dt:g} s")
+    return out
