@@ -1,13 +1,4 @@
-"""Every step-solver strategy solves the same LCP: the time series agree.
-
-The strategies differ only in how the linear systems of the semi-smooth Newton are solved
-(``--linear``: one factorisation + dense Schur complement, one factorisation as CG
-preconditioner, a factorisation per iteration, AMG) or in the Newton method itself (SNES
-vinewtonrsls). The direct ones solve each Newton system to round-off, so they take the
-same active sets and agree to ~1e-11 relative; the AMG-preconditioned ones stop at a KSP
-relative residual of 1e-12 on systems whose condition number is ~1e4 (h = 1/8, dt = 2e-3),
-hence agreement to ~1e-8. Runs on 1 rank and, under ``mpirun -n 2``, on 2 ranks.
-"""
+"""Every linear strategy of the semi-smooth Newton gives the same runs (membrane, consistent block, disc)."""
 import gc
 
 from mpi4py import MPI
@@ -23,8 +14,12 @@ from sdm_dolfinx.solvers import VIError, active_set, augmented, factorisation, s
 
 COMM = MPI.COMM_WORLD
 COLUMNS = ("energy", "u_probe", "lambda_probe", "n_active", "newton_its")
+
+
 #: direct solves: round-off of the Newton systems, accumulated over 200 steps
 DIRECT_RTOL = 1e-10
+
+
 #: KSP rtol 1e-12 times the condition number of the reduced systems (~1e4)
 AMG_RTOL = 5e-8
 
@@ -162,44 +157,6 @@ def test_auto_choice():
         simulate(membrane8(), linear="nope", T=0.01)
 
 
-@pytest.mark.skipif(COMM.size == 1, reason="compares a 2-rank run with a serial one: needs mpirun -n 2")
-def test_schur_two_ranks_equal_serial():
-    """The distributed Schur strategy (columns solved collectively, the dense system
-    gathered on every rank) gives the serial time series to round-off."""
-    kw = dict(pair="P2/P1", dt=2e-4, T=0.02, linear="schur")
-    par = series(disc1, **kw)
-    ser = None
-    if COMM.rank == 0:
-        r = simulate(disc.problem(level=1, comm=MPI.COMM_SELF), **kw)
-        ser = {c: r.timeseries[c].copy() for c in COLUMNS}
-        del r
-        gc.collect()
-    ser = COMM.bcast(ser, root=0)
-    assert_same(par, ser, DIRECT_RTOL, "2 ranks vs 1")
-
-
-@pytest.fixture
-def distributed_factor():
-    """Factorise with MUMPS distributed over the ranks instead of one copy per rank."""
-    opts = PETSc.Options()
-    opts["sdm_factor_redundant"] = 0
-    yield
-    opts.delValue("sdm_factor_redundant")
-
-
-def test_distributed_factorisation_agrees(distributed_factor):
-    """The factorisation distributed over the ranks (MUMPS; the default from
-    factorisation.REDUNDANT_MAX_ROWS rows) gives the time series of the redundant one. On dolfinx 0.9 /
-    PETSc 3.22 with 2 ranks this factorisation failed in about 1 run in 3 with MUMPS's
-    default work-space margin (INFOG(1) = -9; CI, 2026-11): factorisation.factorise now starts from a
-    larger margin and retries with a doubled one."""
-    kw = dict(pair="P2/P1", scheme="backward-euler", dt=5e-3, T=0.2)
-    ref = series(lambda: membrane.problem(N=10, comm=COMM), linear="lu", **kw)
-    for lin in ("schur", "cg-factor"):
-        assert_same(series(lambda: membrane.problem(N=10, comm=COMM), linear=lin, **kw), ref, DIRECT_RTOL,
-                    lin + " (distributed factorisation)")
-
-
 def test_failed_factorisation_is_reported():
     """A factorisation that fails (here: a singular matrix) raises VIError naming MUMPS's
     error code, on every rank, instead of returning NaNs."""
@@ -213,3 +170,4 @@ def test_failed_factorisation_is_reported():
     with pytest.raises(VIError, match=r"MUMPS INFOG\(1\) = -10"):
         factorisation.factorise(A, COMM, "sdm_test_singular_", kind="lu", package="mumps")
     A.destroy()
+

@@ -1,5 +1,4 @@
-"""Post-processing: fields reloaded from state.h5, the energy recomputed from them, and
-interpolation between non-matching meshes (serial and on 2 ranks)."""
+"""Post-processing: fields reloaded from state.h5, the energy recomputed from them, interpolation between non-matching meshes (serial and on 2 ranks)."""
 import csv
 
 from mpi4py import MPI
@@ -21,6 +20,12 @@ def _linear(x):
 
 def _max_abs(a, comm=COMM):
     return comm.allreduce(float(np.max(np.abs(a), initial=0.0)), op=MPI.MAX)
+
+
+def _read_csv(path):
+    with open(path) as fh:
+        rows = list(csv.DictReader(fh))
+    return {k: np.array([float(r[k]) for r in rows]) for k in rows[0]}
 
 
 @pytest.mark.parametrize("degrees", [(1, 2), (2, 1), (2, 2)])
@@ -80,12 +85,6 @@ def test_convergence_rate_of_synthetic_data(slope):
     assert abs(post.convergence_rate(h, 0.037 * h ** slope) - slope) < 1e-6
 
 
-def _read_csv(path):
-    with open(path) as fh:
-        rows = list(csv.DictReader(fh))
-    return {k: np.array([float(r[k]) for r in rows]) for k in rows[0]}
-
-
 @pytest.mark.parametrize("args", [
     ["membrane", "--N", "4", "--pair", "P1+/P0", "--dt", "0.01", "--T", "0.3"],
     ["membrane", "--N", "4", "--pair", "P2/P1", "--mass", "consistent", "--dt", "0.01", "--T", "0.3"],
@@ -126,10 +125,3 @@ def test_state_written_on_one_rank_is_read_on_all(mpi_tmp_path):
     res = post.recompute_energy(out, COMM, write=False)
     assert res["max_roundoff_ratio"] <= 300 * np.finfo(np.dtype(res["stored_dtype"])).eps
 
-
-def test_energy_command_refuses_bad_input(mpi_tmp_path, capsys):
-    assert cli.main(["energy"]) == 2
-    assert cli.main(["energy", str(mpi_tmp_path / "nothing")]) == 2
-    if COMM.rank == 0:
-        err = capsys.readouterr().err.strip().splitlines()
-        assert err and all(line.startswith("python -m sdm_dolfinx energy: error:") for line in err)

@@ -1,9 +1,5 @@
-"""The Python API: the README example, a user-defined problem checked against its closed form,
-and the command line's help (every command lists every option)."""
-import argparse
-import contextlib
+"""The Python API: the README example, and a user-defined problem (demos/bar_problem.py) checked against its closed form."""
 import importlib.util
-import io
 import os
 import subprocess
 import sys
@@ -14,10 +10,10 @@ from mpi4py import MPI
 import numpy as np
 import pytest
 
-from sdm_dolfinx import PAIRS, SCHEMES, Pair, cli, membrane, simulate
+from sdm_dolfinx import PAIRS, SCHEMES, Pair, membrane, simulate
 
 COMM = MPI.COMM_WORLD
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def load_demo(name):
@@ -124,88 +120,3 @@ def test_custom_problem_demo_runs_as_a_script(mpi_tmp_path):
     problem = COMM.bcast(problem, root=0)
     assert problem is None, problem
 
-
-# ------------------------------------------------------------------------------- the command line
-def _help_of(argv):
-    """(help text, the parsers that printed it) of ``python -m sdm_dolfinx ARGV`` run in-process."""
-    printed = []
-    original = argparse.ArgumentParser.format_help
-
-    def spy(parser):
-        text = original(parser)
-        printed.append((parser, text))
-        return text
-    out = io.StringIO()
-    argparse.ArgumentParser.format_help = spy
-    try:
-        with contextlib.redirect_stdout(out):
-            try:
-                status = cli.main(argv)
-            except SystemExit as e:
-                status = e.code
-    finally:
-        argparse.ArgumentParser.format_help = original
-    return status, out.getvalue(), printed
-
-
-@pytest.mark.parametrize("command", [None] + cli.commands())
-def test_help_lists_every_option(command):
-    """``--help`` of the program and of every command exits 0 and lists each option (checked on rank 0,
-    which is the rank that prints; the verdict is shared so that all ranks pass or fail together)."""
-    argv = ["--help"] if command is None else [command, "--help"]
-    status, text, printed = _help_of(argv)
-    problem = None
-    if COMM.rank == 0:
-        if status not in (0, None):
-            problem = f"{argv}: exit status {status}"
-        elif not printed:
-            problem = f"{argv}: no argparse help was printed"
-        else:
-            parser, help_text = printed[-1]
-            missing = [s for a in parser._actions if a.help != argparse.SUPPRESS for s in a.option_strings
-                       if s not in help_text]
-            if help_text.strip() not in text:
-                problem = f"{argv}: the help was not written to stdout"
-            elif missing:
-                problem = f"{' '.join(argv)} does not list {missing}"
-            elif command is None:
-                absent = [name for name in cli.commands() if name not in help_text]
-                problem = f"--help does not name the commands {absent}" if absent else None
-    problem = COMM.bcast(problem, root=0)
-    assert problem is None, problem
-
-
-def test_python_m_help_in_a_real_process():
-    """``python -m sdm_dolfinx --help`` and ``membrane --help`` in a fresh process (rank 0)."""
-    ok = True
-    if COMM.rank == 0:
-        for argv in (["--help"], ["membrane", "--help"], ["disc", "--help"]):
-            p = subprocess.run([sys.executable, "-m", "sdm_dolfinx", *argv], capture_output=True, text=True,
-                               env=clean_env(), cwd=ROOT, timeout=120)
-            ok &= p.returncode == 0 and "usage:" in p.stdout and "Traceback" not in p.stderr
-            if argv[0] == "membrane":
-                ok &= all(o in p.stdout for o in ("--pair", "--dt", "--T", "--N", "--out", "--write-every"))
-    assert COMM.bcast(ok, root=0)
-
-
-def test_top_level_help_names_every_command():
-    """``python -m sdm_dolfinx --help`` names every run command and every other command, each with its
-    one-line description."""
-    status, text, printed = _help_of(["--help"])
-    problem = None
-    if COMM.rank == 0:
-        help_text = printed[-1][1]
-        lines = {line.split()[0]: line for line in help_text.splitlines() if line.startswith("    ")}
-        absent = [name for name in cli.commands()
-                  if name not in lines or len(lines[name].split()) < 3]
-        problem = f"--help does not name (with a description) {absent}" if absent else None
-    problem = COMM.bcast(problem, root=0)
-    assert problem is None, problem
-
-
-@pytest.mark.skipif(COMM.size > 1, reason="runs every command's --help in child processes: serial only")
-def test_cli_reference_is_current():
-    """docs/cli.md is exactly what scripts/gen_cli_doc.py makes from today's --help texts."""
-    p = subprocess.run([sys.executable, str(ROOT / "scripts" / "gen_cli_doc.py"), "--check"], capture_output=True,
-                       text=True, env=clean_env(), cwd=ROOT, timeout=300)
-    assert p.returncode == 0, f"docs/cli.md is stale: run scripts/gen_cli_doc.py ({p.stdout}{p.stderr})"

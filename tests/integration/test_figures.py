@@ -34,6 +34,7 @@ def _is_real_plot(path):
 
 @pytest.mark.skipif(COMM.size > 1, reason="the quick study takes minutes serially and several times that on 2 "
                     "ranks (MUMPS on small problems); its MPI pieces are tested in test_postprocess.py")
+@pytest.mark.slow
 def test_quick_study_end_to_end(tmp_path, capsys):
     out, runs = tmp_path / "report", tmp_path / "runs"
     assert cli.main(["figures", "--quick", "--out", str(out), "--runs", str(runs)]) == 0

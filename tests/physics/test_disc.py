@@ -1,13 +1,4 @@
-"""The elastic disc falling on a rigid foundation (paper section 5): the physics the method promises.
-
-All runs use mesh level 1 (618 P2 dofs, the paper's 622) with the paper's parameters
-(mm, N, s, tonne). Free flight lasts until t ~ 9.6 ms, contact until t ~ 16 ms, T = 20 ms.
-Every tolerance is justified where it is used; no expected value comes from this code's
-own output: the references are closed forms (free fall), algebraic identities of the
-scheme (momentum balance), the paper's figures (energy behaviour) or another run.
-"""
-import json
-
+"""The falling disc (paper section 5): mesh levels, free flight, momentum balance, energy, rebound."""
 from mpi4py import MPI
 
 import numpy as np
@@ -15,18 +6,26 @@ import pytest
 
 from sdm_dolfinx import disc, simulate
 from sdm_dolfinx.problems import disc_mesh
-from sdm_dolfinx.cli import main as cli_main
 from sdm_dolfinx.method.discretisation import Discretisation
 from sdm_dolfinx.method.integrator import Integrator
 
 COMM = MPI.COMM_WORLD
+
+
 R, HEIGHT, V0, G = 20.0, 10.0, -1000.0, 9810.0       # the defaults (mm, mm, mm/s, mm/s^2)
+
+
 MASS = 1e-6 * np.pi * R ** 2                         # rho |disc| (t per mm of thickness)
+
+
 #: the semi-smooth Newton accepts an inactive vertex within rtol = 1e-10 of the right-hand
 #: side's scale, i.e. ~1e-10 x the coordinates (<= 30 mm): 1e-9 x 30 mm leaves a factor 10
 GAP_TOL = 1e-9 * (R + HEIGHT)
+
+
 #: relative tolerance of every linear solve of a step (solvers.active_set.InactiveSetSolver's ksp rtol)
 KSP_RTOL = 1e-12
+
 
 _RUNS = {}
 
@@ -245,74 +244,3 @@ def test_rebound_is_physical():
     assert ts["lambda_probe"].min() >= 0.0 and ts["lambda_probe"].max() > 0.0
     assert ts["contact_force"].min() >= -1e-9 * ts["contact_force"].max()
 
-
-def test_one_and_two_ranks_agree():
-    """Run on COMM_WORLD and, on rank 0, on COMM_SELF; the time series agree to round-off.
-
-    Meaningful under ``mpirun -n 2`` (on 1 rank the two runs are the same). The mesh is
-    the same (built by gmsh on one rank); only the partition and dof numbering differ, so
-    the differences are round-off amplified by the solver tolerances (1e-12): we ask 1e-9
-    of each column's scale. T = 13 ms covers free flight and the peak of the impact.
-    """
-    dt, T = 1e-4, 0.013
-    par = simulate(disc.problem(level=1, comm=COMM), pair="P2/P1", dt=dt, T=T).timeseries
-    ser = None
-    if COMM.rank == 0:
-        ser = simulate(disc.problem(level=1, comm=MPI.COMM_SELF), pair="P2/P1", dt=dt, T=T).timeseries
-    ser = COMM.bcast(ser, root=0)
-    assert par["n_active"].max() >= 1
-    np.testing.assert_array_equal(par["n_active"], ser["n_active"])
-    for c in ("energy", "kinetic", "potential", "u_probe", "lambda_probe", "contact_force", "momentum_y"):
-        scale = np.max(np.abs(ser[c]))
-        np.testing.assert_allclose(par[c], ser[c], rtol=0, atol=1e-9 * scale, err_msg=c)
-
-
-def test_command_line(mpi_tmp_path):
-    """``python -m sdm_dolfinx disc`` writes the membrane's files with the disc's three extra
-    columns and every parameter's unit in run.json; bad input exits with status 2."""
-    out = mpi_tmp_path / "disc"
-    assert cli_main(["disc", "--level", "1", "--dt", "1e-4", "--T", "0.001", "--out", str(out), "--quiet"]) == 0
-    if COMM.rank == 0:
-        header = (out / "timeseries.csv").read_text().splitlines()[0]
-        assert header == ("step,t,energy,kinetic,potential,u_probe,lambda_probe,n_active,newton_its,"
-                          "contact_force,momentum_y,elastic")
-        info = json.loads((out / "run.json").read_text())
-        assert info["status"] == "finished"
-        params, units = info["problem"]["parameters"], info["problem"]["units"]
-        for k in ("radius", "height", "rho", "lame_lambda", "lame_mu", "gravity", "v0", "h"):
-            assert k in params and k in units, k
-    COMM.Barrier()
-    assert cli_main(["disc", "--radius", "-1", "--out", str(mpi_tmp_path / "bad")]) == 2
-
-
-def test_mesh_file_gives_the_same_run(mpi_tmp_path, capsys):
-    """``disc --mesh FILE.msh``: the level-1 mesh written to a file and read back gives the
-    run of the generated mesh (same nodes, written with 16 digits: 1e-9 relative, through
-    the impact); a missing, unreadable or mismatched file is bad input (status 2, one line)."""
-    path = mpi_tmp_path / "disc.msh"
-    if COMM.rank == 0:
-        disc_mesh.write_msh(path, disc_mesh.LEVELS[1], radius=R, centre=(0.0, R + HEIGHT))
-    COMM.Barrier()
-    kw = dict(pair="P2/P1", dt=1e-4, T=0.012)
-    a = simulate(disc.problem(mesh_file=path), **kw)
-    b = run(**kw)
-    assert a.info["problem"]["parameters"]["mesh_file"] == str(path)
-    assert a.info["dim_W"] == b["info"]["dim_W"] and b["ts"]["n_active"].max() > 0
-    np.testing.assert_array_equal(a.timeseries["n_active"], b["ts"]["n_active"])
-    for c in ("energy", "u_probe", "lambda_probe", "contact_force", "momentum_y"):
-        scale = np.max(np.abs(b["ts"][c]))
-        np.testing.assert_allclose(a.timeseries[c], b["ts"][c], rtol=0, atol=1e-9 * scale, err_msg=c)
-    junk = mpi_tmp_path / "junk.msh"
-    if COMM.rank == 0:
-        junk.write_text("$MeshFormat\nnot a mesh\n")
-    COMM.Barrier()
-    out = mpi_tmp_path / "never"
-    for args, message in ((["--mesh", str(mpi_tmp_path / "missing.msh")], "no such file"),
-                          (["--mesh", str(junk)], "junk.msh"),
-                          (["--mesh", str(path), "--radius", "25"], "not the disc of radius 25"),
-                          (["--mesh", str(path), "--h", "3"], "choose one")):
-        assert cli_main(["disc", *args, "--out", str(out), "--quiet"]) == 2
-        err = capsys.readouterr().err
-        if COMM.rank == 0:
-            assert message in err and len(err.strip().splitlines()) == 1, err
-        assert not out.exists()

@@ -1,4 +1,4 @@
-"""The command line: outputs of a run, and bad input refused in one line with status 2."""
+"""The run command's outputs, and bad input refused in one line with status 2."""
 import csv
 import json
 import os
@@ -78,3 +78,4 @@ def test_petsc_rejecting_an_option_is_bad_input(option, message, tmp_path):
     assert message in p.stderr and "check the -sdm_ options" in p.stderr
     assert "Traceback" not in p.stderr and len(p.stderr.strip().splitlines()) == 1
     assert not out.exists()
+

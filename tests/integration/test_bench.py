@@ -7,7 +7,7 @@ from pathlib import Path
 from mpi4py import MPI
 
 COMM = MPI.COMM_WORLD
-SCRIPT = Path(__file__).resolve().parent.parent / "bench" / "run.py"
+SCRIPT = Path(__file__).resolve().parents[2] / "bench" / "run.py"
 
 #: what every record of bench/results/<suite>.json holds
 KEYS = {"problem", "size", "pair", "dt", "T", "strategy", "ranks", "dofs", "dim_H", "N_g", "mesh_time",

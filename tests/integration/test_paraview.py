@@ -22,7 +22,8 @@ from sdm_dolfinx import disc, membrane, simulate
 from sdm_dolfinx.post import render
 
 COMM = MPI.COMM_WORLD
-ROOT = Path(__file__).resolve().parent.parent
+pytestmark = pytest.mark.paraview
+ROOT = Path(__file__).resolve().parents[2]
 PVPYTHON = shutil.which("pvpython")
 XVFB_RUN = shutil.which("xvfb-run")
 FIELDS = ("displacement", "velocity", "contact_stress", "active")
