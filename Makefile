@@ -57,7 +57,7 @@ figures-quick: setup
 
 # ParaView's own reader on real output: installs Debian's paraview and xvfb if missing (about 2 min,
 # ~790 MB), runs a short membrane run, checks every array at every time step with pvpython
-# (Xdmf3ReaderS), renders a PNG under xvfb-run, then runs tests/test_paraview.py. See docs/install.md.
+# (Xdmf3ReaderS), renders a PNG under xvfb-run, then runs tests/integration/test_paraview.py. See docs/install.md.
 .PHONY: paraview-check
 paraview-check: setup
 	@command -v pvpython >/dev/null && command -v xvfb-run >/dev/null || { \
@@ -66,4 +66,4 @@ paraview-check: setup
 	  $$SUDO apt-get update -qq && $$SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq paraview xvfb >/dev/null; }
 	$(PY) -m sdm_dolfinx membrane --N 10 --dt 1e-3 --T 0.5 --write-every 20 --out output/paraview-check --overwrite --quiet
 	xvfb-run -a pvpython scripts/paraview_check.py output/paraview-check --json output/paraview-check/paraview.json --png output/paraview-check/paraview.png
-	$(PY) -m pytest -q tests/test_paraview.py
+	$(PY) -m pytest -q tests/integration/test_paraview.py

@@ -68,10 +68,10 @@ QUICK = {
 def make_problem(spec, comm):
     if spec["problem"] == "membrane":
         from sdm_dolfinx import membrane
-        return membrane.Problem(N=spec["size"], comm=comm)
+        return membrane.problem(N=spec["size"], comm=comm)
     from sdm_dolfinx import disc
     extra = {"height": spec["height"]} if "height" in spec else {}
-    return disc.Problem(level=spec["size"], comm=comm, **extra)
+    return disc.problem(level=spec["size"], comm=comm, **extra)
 
 
 def peak_rss_mb():

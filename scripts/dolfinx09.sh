@@ -5,7 +5,7 @@
 #   scripts/dolfinx09.sh [test]       build the root file system if needed, then run the pytest
 #                                     suite on 1 rank and on $NP (default 2) ranks inside it, then
 #                                     compare a membrane run between the host's dolfinx and 0.9
-#   scripts/dolfinx09.sh versions     only that comparison (tests/test_versions.py)
+#   scripts/dolfinx09.sh versions     only that comparison (tests/integration/test_versions.py)
 #   scripts/dolfinx09.sh build        only build (or check) the root file system
 #   scripts/dolfinx09.sh run CMD ...  run CMD inside it, in the checkout (e.g. python3 demos/x.py)
 #   scripts/dolfinx09.sh shell        an interactive shell inside it
@@ -247,7 +247,7 @@ print("dolfinx", dolfinx.__version__, "| basix", basix.__version__, "| ufl", ufl
 
 # The paper's Fig. 2 run (membrane P1+/P0, midpoint, N = 10, dt = 1e-3, T = 0.8) on 1 and $NP ranks
 # in the chroot and on the host (its .venv: dolfinx 0.5.2 on Debian 12), then
-# tests/test_versions.py on the host compares the time series (1e-10 relative).
+# tests/integration/test_versions.py on the host compares the time series (1e-10 relative).
 compare_versions() {
   local vdir=output/versions np rc=0
   local run=(-m sdm_dolfinx membrane --pair P1+/P0 --scheme midpoint --N 10 --dt 1e-3 --T 0.8
@@ -262,7 +262,7 @@ compare_versions() {
       mpirun -n "$np" .venv/bin/python "${run[@]}" --out "$vdir/host-np$np" || return 1
   done
   run_bg env -C "$SRC" SDM_VERSION_RUNS="$vdir" .venv/bin/python -m pytest -q -p no:cacheprovider \
-    tests/test_versions.py || rc=$?
+    tests/integration/test_versions.py || rc=$?
   return "$rc"
 }
 
@@ -274,7 +274,7 @@ case "$cmd" in
   run) in_chroot "$@" ;;
   versions)
     compare_versions || { say "FAILED: the time series differ between the host's dolfinx and 0.9"; exit 1; }
-    say "the membrane time series agree between the host's dolfinx and 0.9 (tests/test_versions.py)" ;;
+    say "the membrane time series agree between the host's dolfinx and 0.9 (tests/integration/test_versions.py)" ;;
   test)
     rc1=0; rc2=0
     say "pytest on 1 rank"
@@ -288,6 +288,6 @@ case "$cmd" in
     [ "$rc1" -eq 0 ] && [ "$rc2" -eq 0 ] || { say "FAILED on dolfinx 0.9 (1 rank: $rc1, $NP ranks: $rc2)"; exit 1; }
     say "passed on dolfinx 0.9 (1 and $NP ranks)"
     compare_versions || { say "FAILED: the time series differ between the host's dolfinx and 0.9"; exit 1; }
-    say "the membrane time series agree between the host's dolfinx and 0.9 (tests/test_versions.py)"
+    say "the membrane time series agree between the host's dolfinx and 0.9 (tests/integration/test_versions.py)"
     ;;
 esac

@@ -69,6 +69,17 @@ PAIRS = {p.name: p for p in [
 ]}
 
 
+def register(pair):
+    """Add a :class:`Pair` to :data:`PAIRS` (so that ``--pair`` and ``simulate(pair=name)`` know
+    it); a pair of one's own can also be given to ``simulate`` as the object itself."""
+    if not isinstance(pair, Pair):
+        raise TypeError(f"register() takes a Pair, got {type(pair).__name__}")
+    if pair.name in PAIRS and PAIRS[pair.name] != pair:
+        raise ValueError(f"a different pair {pair.name!r} is registered already")
+    PAIRS[pair.name] = pair
+    return pair
+
+
 def get_pair(name):
     """The registered pair called ``name``; ValueError listing the choices otherwise."""
     try:

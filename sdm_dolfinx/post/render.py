@@ -11,9 +11,9 @@ display) and with matplotlib otherwise (:mod:`.render_mpl`). Reading the files a
 ParaView-friendly XDMF are in :mod:`.xdmf`; their names are available here as well
 (``render.read_xdmf``, ``render.merge_xdmf``, ...).
 
-Command line (also the pyvista child process, see :func:`_in_child`)::
-
-    python -m sdm_dolfinx.post.render RUN_DIR [--png F] [--gif F] [--time T] [--merge]
+The command is ``python -m sdm_dolfinx render RUN_DIR [--png F] [--gif F] [--time T]
+[--merge]`` (:mod:`sdm_dolfinx.cli.render`); running this file is only the pyvista child
+process (see :func:`_in_child`).
 
 This module, :mod:`.xdmf` and :mod:`.render_mpl` import only the standard library at load time
 (numpy, h5py, pyvista and matplotlib inside the functions), so a ParaView ``pvpython`` script
@@ -68,8 +68,9 @@ def _in_child():
     return "dolfinx" in sys.modules and "vtkmodules.vtkCommonCore" not in sys.modules
 
 
-def _run_child(args):
-    cmd = [sys.executable, "-P", str(Path(__file__).resolve())] + [str(a) for a in args]
+def _run_child(what, kwargs, xdmf):
+    """Draw in a fresh process: ``python -P render.py WHAT XDMF KWARGS_JSON`` (see :func:`_child`)."""
+    cmd = [sys.executable, "-P", str(Path(__file__).resolve()), what, str(xdmf), json.dumps(kwargs)]
     p = subprocess.run(cmd, capture_output=True, text=True)
     if p.returncode != 0:
         raise RuntimeError(f"rendering in a child process failed ({' '.join(cmd)}):\n{p.stderr[-2000:]}")
@@ -273,8 +274,8 @@ def picture(run, png, time=None, scale=None, size=(900, 700)):
         render_mpl.picture_mpl(series, png, t, scale, kind)
         return "matplotlib"
     if _in_child():
-        return _run_child([series.xdmf, "--png", Path(png).resolve(), "--time", repr(t), "--scale", repr(scale),
-                           "--size", size[0], size[1]])
+        return _run_child("picture", {"png": str(Path(png).resolve()), "time": t, "scale": scale,
+                                      "size": list(size)}, series.xdmf)
     pv = _pv_setup()
     plotter = pv.Plotter(off_screen=True, window_size=list(size))
     plotter.set_background("white")
@@ -314,8 +315,8 @@ def animation(run, path, times=None, scale=None, size=(640, 640), fps=12):
         render_mpl.animation_mpl(series, path, times, scale, kind, fps)
         return "matplotlib"
     if _in_child():
-        return _run_child([series.xdmf, "--gif", Path(path).resolve(), "--times", json.dumps(times),
-                           "--scale", repr(scale), "--size", size[0], size[1], "--fps", fps])
+        return _run_child("animation", {"path": str(Path(path).resolve()), "times": list(times), "scale": scale,
+                                        "size": list(size), "fps": fps}, series.xdmf)
     import imageio.v2 as imageio
     pv = _pv_setup()
     plotter = pv.Plotter(off_screen=True, window_size=list(size))
@@ -347,39 +348,15 @@ def animation(run, path, times=None, scale=None, size=(640, 640), fps=12):
     return "pyvista"
 
 
-def main(argv=None):
-    """``python -m sdm_dolfinx.post.render RUN_DIR [--png F] [--gif F] [--time T] [--merge]``."""
-    import argparse
-    p = argparse.ArgumentParser(prog="python -m sdm_dolfinx.post.render",
-                                description="Pictures of a run from its solution.xdmf (pyvista if installed, "
-                                            "else matplotlib), and a ParaView-friendly merged XDMF.")
-    p.add_argument("run", type=Path, help="the run's folder (or its solution.xdmf)")
-    p.add_argument("--png", type=Path, help="write a picture at --time (default: the last output time)")
-    p.add_argument("--gif", type=Path, help="write an animation of all output times (.gif, or .mp4)")
-    p.add_argument("--time", type=float, default=None, help="time of the picture (nearest output time)")
-    p.add_argument("--scale", type=float, default=None,
-                   help="displacement magnification (default 10 for the membrane, 1 for elastic bodies)")
-    p.add_argument("--every", type=int, default=1, metavar="K", help="animation: every K-th output time")
-    p.add_argument("--times", type=json.loads, default=None, help=argparse.SUPPRESS)
-    p.add_argument("--size", type=int, nargs=2, default=None, metavar=("W", "H"), help="picture size in pixels")
-    p.add_argument("--fps", type=float, default=12, help="animation frames per second (default 12)")
-    p.add_argument("--merge", action="store_true",
-                   help="write solution_paraview.xdmf: all fields in one temporal grid (for ParaView)")
-    args = p.parse_args(argv)
-    src = args.run / "solution.xdmf" if args.run.is_dir() else args.run
-    if args.merge:
-        print(f"wrote {merge_xdmf(src)}")
-    if args.png or args.gif:
-        series = read_xdmf(src)
-        if args.png:
-            how = picture(series, args.png, time=args.time, scale=args.scale, size=args.size or (900, 700))
-            print(f"wrote {args.png} ({how})")
-        if args.gif:
-            how = animation(series, args.gif, times=args.times or series.times[::args.every], scale=args.scale,
-                            size=args.size or (640, 640), fps=args.fps)
-            print(f"wrote {args.gif} ({how})")
+def _child(argv):
+    """The child process of :func:`_run_child`: ``picture`` or ``animation`` of XDMF with the
+    JSON keyword arguments (the public command is ``python -m sdm_dolfinx render``)."""
+    what, src, kwargs = argv
+    kwargs = json.loads(kwargs)
+    kwargs["size"] = tuple(kwargs["size"])
+    {"picture": picture, "animation": animation}[what](read_xdmf(src), **kwargs)
     return 0
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(_child(sys.argv[1:]))

@@ -123,6 +123,7 @@ def test_long_functions_say_why():
 
 
 @pytest.mark.parametrize("registry,module", [("problems", "sdm_dolfinx.problems"),
+                                             ("pairs", "sdm_dolfinx.method.pairs"),
                                              ("schemes", "sdm_dolfinx.method.schemes"),
                                              ("solvers", "sdm_dolfinx.solvers")])
 def test_registries_have_a_register_function(registry, module):
