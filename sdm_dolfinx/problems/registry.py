@@ -7,6 +7,7 @@ then has every command the built-in problems have (``python -m sdm_dolfinx run
 ``energy`` and the pictures find the declaration again.
 """
 import importlib.util
+import inspect
 import sys
 from pathlib import Path
 
@@ -21,6 +22,7 @@ def register(spec):
     """Add ``spec`` to the registry (a file's problem may replace one from the same file)."""
     if not isinstance(spec, ProblemSpec):
         raise TypeError(f"register() takes a ProblemSpec, got {type(spec).__name__}")
+    _check_build_signature(spec)
     old = _REGISTRY.get(spec.name)
     if old is not None and old.source != spec.source:
         where = old.source or "sdm_dolfinx (built in)"
@@ -28,6 +30,26 @@ def register(spec):
                                 f"choose another name")
     _REGISTRY[spec.name] = spec
     return spec
+
+
+def _check_build_signature(spec):
+    """``build(comm, **values)`` must take exactly the declared parameters (a misspelt Param
+    would otherwise surface only when the problem is built)."""
+    try:
+        params = list(inspect.signature(spec.build).parameters.values())
+    except (TypeError, ValueError):
+        return
+    if any(p.kind is p.VAR_KEYWORD for p in params):
+        return
+    takes = {p.name for p in params[1:]}
+    declared = {p.name for p in spec.params}
+    if takes != declared:
+        where = f" ({spec.source})" if spec.source else ""
+        missing, extra = sorted(declared - takes), sorted(takes - declared)
+        raise ProblemInputError(
+            f"problem {spec.name!r}{where}: build(comm, ...) must take exactly the declared parameters"
+            + (f"; declared but not taken: {', '.join(missing)}" if missing else "")
+            + (f"; taken but not declared: {', '.join(extra)}" if extra else ""))
 
 
 def names(builtin=False):
@@ -68,13 +90,28 @@ def load_file(path):
         mod_spec.loader.exec_module(module)
     except Exception as e:          # the user's code: any error is reported in one line
         sys.modules.pop(modname, None)
-        raise ProblemInputError(f"problem file {path}: {type(e).__name__}: {e}") from None
+        raise ProblemInputError(f"problem file {path}{user_line(e, path)}: {one_line(e)}") from None
     spec = getattr(module, "PROBLEM", None)
     if not isinstance(spec, ProblemSpec):
         raise ProblemInputError(f"problem file {path}: defines no PROBLEM = ProblemSpec(...) "
                                 f"(see docs/add_a_problem.md)")
     spec.source = source
     return register(spec)
+
+
+def one_line(e):
+    """``Type: message`` of an exception on one line (its first non-empty line)."""
+    text = next((ln.strip() for ln in str(e).splitlines() if ln.strip()), "")
+    return f"{type(e).__name__}: {text}" if text else type(e).__name__
+
+
+def user_line(e, path):
+    """``, line N`` of the innermost frame of ``e``'s traceback in the file ``path`` ('' if none)."""
+    import traceback
+    frames = [f for f in traceback.extract_tb(e.__traceback__) if Path(f.filename).resolve() == Path(path)]
+    if isinstance(e, SyntaxError) and e.lineno and Path(e.filename or "").resolve() == Path(path):
+        return f", line {e.lineno}"
+    return f", line {frames[-1].lineno}" if frames else ""
 
 
 def resolve(problem):

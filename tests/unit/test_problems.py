@@ -298,8 +298,6 @@ def test_load_file_errors_are_one_line(mpi_tmp_path, clean_registry, text, expec
     assert problems.names() == before
 
 
-@pytest.mark.xfail(strict=True, reason="registry.py load_file: the message is f'{type(e).__name__}: {e}', so an "
-                                       "exception whose text has a newline gives a multi-line message")
 def test_load_file_error_with_multiline_exception_is_one_line(mpi_tmp_path, clean_registry):
     path = write_file(mpi_tmp_path, "multi.py", "raise RuntimeError('boom\\nsecond line')\n")
     with pytest.raises(ProblemInputError) as e:
