@@ -89,6 +89,16 @@ def assemble_vector(L):
     return b
 
 
+def assemble_vector_into(b, L):
+    """Reassemble the linear form ``L`` into the existing PETSc vector ``b`` (zeroed first,
+    ghost contributions added to their owners): a time-dependent load, every step."""
+    with b.localForm() as bl:
+        bl.set(0.0)
+    petsc_module().assemble_vector(b, L)
+    b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    return b
+
+
 def assemble_matrix_block(a, bcs=(), diagonal=1.0):
     """One monolithic matrix of the block form ``a`` (list of lists); rows owned by a rank
     are its rows of block 0, then of block 1, ...

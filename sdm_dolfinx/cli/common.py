@@ -77,6 +77,25 @@ def positive_float(text):
     return v
 
 
+def positive_int(text):
+    """argparse type: an integer >= 1."""
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1 (got {v})")
+    return v
+
+
+def folder_path(text):
+    """argparse type: a folder's path, not empty (``Path("")`` would be the current folder)."""
+    if not str(text).strip():
+        raise argparse.ArgumentTypeError("empty: name a folder (. for the current one)")
+    from pathlib import Path
+    return Path(text)
+
+
 def check_writable(path, what):
     """A file the command will write: not a folder, and its nearest existing folder writable."""
     if path.exists() and path.is_dir():

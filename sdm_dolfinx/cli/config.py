@@ -1,6 +1,8 @@
 """``--config FILE``: option values from a TOML file (keys are the options without ``--``),
 every key and value checked against the option it stands for; the command line overrides it."""
 import argparse
+import os
+import stat
 from pathlib import Path
 
 try:
@@ -8,27 +10,41 @@ try:
 except ModuleNotFoundError:        # pragma: no cover
     import tomli as tomllib
 
-from sdm_dolfinx.cli.common import UsageError, positive_float
+from sdm_dolfinx.cli.common import UsageError, folder_path, positive_float, positive_int
 
 #: keys that are not options of the run parser
 SPECIAL_KEYS = ("problem", "problem-file")
+#: the largest config file read (a few hundred bytes is usual; /dev/zero must not fill memory)
+MAX_BYTES = 1 << 20
 
 
 def read_toml(path):
-    """The TOML file's table (UsageError when missing, unreadable or not TOML)."""
+    """The TOML file's table (UsageError when missing, not a regular file, larger than
+    :data:`MAX_BYTES`, unreadable or not TOML)."""
     try:
+        st = os.stat(path)
+        if stat.S_ISDIR(st.st_mode):
+            raise UsageError(f"config file {path} is a folder")
+        if not stat.S_ISREG(st.st_mode):
+            raise UsageError(f"config file {path} is not a regular file")
         with open(path, "rb") as fh:
-            return tomllib.load(fh)
+            data = fh.read(MAX_BYTES + 1)
+        if len(data) > MAX_BYTES:
+            raise UsageError(f"config file {path} is larger than {MAX_BYTES >> 20} MB: not a configuration")
+        return tomllib.loads(data.decode("utf-8"))
     except FileNotFoundError:
         raise UsageError(f"config file {path} not found") from None
-    except IsADirectoryError:
-        raise UsageError(f"config file {path} is a folder") from None
     except OSError as e:
-        raise UsageError(f"cannot read config file {path}: {e.strerror}") from None
+        raise UsageError(f"cannot read config file {_short(path)}: {e.strerror}") from None
     except tomllib.TOMLDecodeError as e:
         raise UsageError(f"{path}: invalid TOML: {e}") from None
     except UnicodeDecodeError:
         raise UsageError(f"{path}: not a TOML file (TOML is UTF-8 text)") from None
+
+
+def _short(path, n=80):
+    text = str(path)
+    return text if len(text) <= n else text[:40] + "..." + text[-20:]
 
 
 def load_config(path, parser, data=None):
@@ -42,8 +58,8 @@ def load_config(path, parser, data=None):
     for key, value in data.items():
         action = by_option.get(key) or by_option.get(key.replace("_", "-"))
         if action is None:
-            raise UsageError(f"{path}: unknown key '{key}'; allowed keys: {', '.join(SPECIAL_KEYS)}, "
-                             f"{', '.join(sorted(by_option))}")
+            raise UsageError(f"{path}: unknown key '{key}'; allowed keys: "
+                             f"{', '.join(sorted(set(SPECIAL_KEYS) | set(by_option)))}")
         if action.dest in seen:
             raise UsageError(f"{path}: keys '{seen[action.dest]}' and '{key}' are the same option")
         seen[action.dest] = key
@@ -66,10 +82,13 @@ def _config_value(path, action, key, value):
                 and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)):
             raise bad(f"a list of {n} numbers")
         return [float(v) for v in value]
-    if action.type is int:
+    if action.type in (int, positive_int):
         if not isinstance(value, int) or isinstance(value, bool):
             raise bad("an integer")
-        return value
+        try:
+            return action.type(str(value))
+        except argparse.ArgumentTypeError as e:
+            raise UsageError(f"{path}: key '{key}': {e}") from None
     if action.type in (float, positive_float):
         if not isinstance(value, (int, float)) or isinstance(value, bool):
             raise bad("a number")
@@ -77,10 +96,13 @@ def _config_value(path, action, key, value):
             return action.type(str(value))
         except argparse.ArgumentTypeError as e:
             raise UsageError(f"{path}: key '{key}': {e}") from None
-    if action.type is Path:
+    if action.type in (Path, folder_path):
         if not isinstance(value, str):
             raise bad("a path (string)")
-        return Path(value)
+        try:
+            return action.type(value)
+        except argparse.ArgumentTypeError as e:
+            raise UsageError(f"{path}: key '{key}': {e}") from None
     if not isinstance(value, str):
         raise bad("a string" + (f" among {', '.join(map(str, action.choices))}" if action.choices else ""))
     if action.choices is not None and value not in action.choices:

@@ -5,6 +5,7 @@ problem is rebuilt from its ``run.json`` through the registry, a problem file in
 Bad input (not a run folder, a problem that cannot be rebuilt): one line, exit status 2.
 """
 import sys
+import tempfile
 from pathlib import Path
 
 from mpi4py import MPI
@@ -12,11 +13,16 @@ from mpi4py import MPI
 import numpy as np
 
 from sdm_dolfinx.cli.common import Parser, UsageError, parse_or_help, report_usage_error, say_error
+from sdm_dolfinx.mpiutil import on_rank0
 from sdm_dolfinx.post import PostprocessError, recompute_energy
 
 PROG = "python -m sdm_dolfinx energy"
 #: the files a run folder must hold
 RUN_FILES = ("run.json", "timeseries.csv", "state.h5")
+#: the columns of timeseries.csv the comparison reads
+NEEDED_COLUMNS = ("step", "energy")
+#: what the command writes
+OUTPUT = "energy_recomputed.csv"
 
 
 def build_parser():
@@ -25,6 +31,29 @@ def build_parser():
                "print the largest relative difference to DIR/timeseries.csv.")
     p.add_argument("folder", type=Path, metavar="DIR", help="a run's output folder")
     return p
+
+
+def check_folder(folder):
+    """What would fail only after the whole computation, checked first (rank 0): the time
+    series' columns the comparison needs, and that DIR/energy_recomputed.csv can be written."""
+    path = folder / "timeseries.csv"
+    try:
+        with open(path, newline="") as fh:
+            header = fh.readline(1 << 16).strip().split(",")
+    except (OSError, UnicodeDecodeError) as e:
+        raise UsageError(f"cannot read {path}: {getattr(e, 'strerror', None) or e}") from None
+    for column in NEEDED_COLUMNS:
+        if column not in header:
+            raise UsageError(f"{path} has no column '{column}' (its header: {','.join(header)[:120]})")
+    out = folder / OUTPUT
+    if out.is_dir():
+        raise UsageError(f"{out} is a folder: cannot write the result there")
+    # os.access says yes to root on a read-only folder: try a temporary file (removed at once)
+    try:
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as e:
+        raise UsageError(f"cannot write {out} ({folder}: {e.strerror or e})") from None
 
 
 def main(argv=None):
@@ -38,6 +67,7 @@ def main(argv=None):
         for name in RUN_FILES:
             if not (args.folder / name).exists():
                 raise UsageError(f"{args.folder} has no {name} (not the output folder of a run)")
+        on_rank0(comm, check_folder, args.folder, wrap=UsageError)
     except UsageError as e:
         return report_usage_error(PROG, e, comm)
     try:

@@ -22,6 +22,8 @@ from sdm_dolfinx.mpiutil import atomic_write_text, json_text
 from sdm_dolfinx.post import DENSE_MAX, SWEEP_HEADER, TOL, InspectError, inspect, plot_sweep, report, sweep, sweep_line
 from sdm_dolfinx.problems import ProblemInputError
 from sdm_dolfinx.problems.disc_mesh import MeshError
+from sdm_dolfinx.run import RunInputError
+from sdm_dolfinx.run.launch import check_memory
 
 PROG = "python -m sdm_dolfinx inspect"
 #: the problem when none is named
@@ -121,15 +123,17 @@ def check(args, spec):
     errors = []
     if args.problem_name not in (None, spec.name):
         errors.append(f"unrecognized arguments: {args.problem_name}")
-    try:
-        spec.values(given, cli=True)
-    except ProblemInputError as e:
-        errors.append(str(e))
     pairs = list(PAIRS) if args.pair == ["all"] else args.pair
     bad = [q for q in pairs if q not in PAIRS]
     if bad:
         errors.append(f"unknown pair {bad[0]!r}; choose from {', '.join(PAIRS)} or all")
     args.pair = list(dict.fromkeys(pairs))
+    try:
+        values = spec.values(given, cli=True)
+        if args.sweep is None:
+            errors += _memory(spec, values, args.pair)
+    except ProblemInputError as e:
+        errors.append(str(e))
     if args.dense_max < 0:
         errors.append(f"--dense-max must be >= 0 (got {args.dense_max})")
     if args.sweep is not None:
@@ -161,10 +165,20 @@ def _check_sweep(args, spec, given):
             errors.append(f"--sweep {v}: --{spec.param(param).option} must be one of {', '.join(map(str, choices))}")
             continue
         try:
-            spec.values({**given, param: v}, cli=True)
+            values = spec.values({**given, param: v}, cli=True)
+            errors += [f"--sweep {v}: {m}" for m in _memory(spec, values, args.pair)]
         except ProblemInputError as e:
             errors.append(f"--sweep {v}: {e}")
     return errors
+
+
+def _memory(spec, values, pairs):
+    """A message when the inspection would need more memory than the machine has."""
+    try:
+        check_memory(spec, values, [q for q in pairs if q in PAIRS], MPI.COMM_WORLD, cli=True, inspect=True)
+    except RunInputError as e:
+        return [str(e)]
+    return []
 
 
 def main(argv=None):

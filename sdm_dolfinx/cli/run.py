@@ -14,7 +14,7 @@ from pathlib import Path
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from sdm_dolfinx.cli.common import Parser, UsageError, positive_float, say_error
+from sdm_dolfinx.cli.common import Parser, UsageError, folder_path, positive_float, positive_int, say_error
 from sdm_dolfinx.cli.config import load_config, read_toml
 from sdm_dolfinx.cli.params import add_param_options, param_values
 from sdm_dolfinx.method import schemes
@@ -65,17 +65,17 @@ def add_run_options(p, defaults):
                         "the reduced matrix (set up when the active set changes); cg-amg = CG on the inactive set "
                         "with one BoomerAMG set-up of the step matrix")
     o = p.add_argument_group("output")
-    o.add_argument("--out", type=Path, default=None, help="output folder (default output/<problem>)")
-    o.add_argument("--write-every", type=int, default=S, metavar="K",
+    o.add_argument("--out", type=folder_path, default=None, help="output folder (default output/<problem>)")
+    o.add_argument("--write-every", type=positive_int, default=S, metavar="K",
                    help="write the XDMF fields every K steps (default 10)")
     o.add_argument("--overwrite", action="store_true", help="replace a run in --out")
     o.add_argument("--quiet", action="store_true", help="no progress lines")
     r = p.add_argument_group("configuration and restart")
     r.add_argument("--config", type=Path, default=None, metavar="FILE",
                    help="TOML file of option = value pairs (names as here, without --); the command line overrides it")
-    r.add_argument("--checkpoint-every", type=int, default=S, metavar="K",
+    r.add_argument("--checkpoint-every", type=positive_int, default=S, metavar="K",
                    help="write DIR/checkpoint.npz every K steps (a SIGINT/SIGTERM always writes one)")
-    r.add_argument("--restart", type=Path, default=None, metavar="DIR",
+    r.add_argument("--restart", type=folder_path, default=None, metavar="DIR",
                    help="continue the run in DIR from its checkpoint, with the problem, parameters and options of "
                         "DIR/run.json (same number of ranks; only --checkpoint-every and --quiet may be given)")
     p.epilog = PETSC_EPILOG
@@ -118,7 +118,8 @@ def _choose_spec(command, argv):
     if known.config is not None:
         data = read_toml(Path(known.config))
         name = name or data.get("problem")
-        path = path or data.get("problem-file")
+        if path is None and data.get("problem-file") is not None:
+            path = Path(known.config).parent / Path(str(data["problem-file"])).expanduser()  # relative to the TOML
     if name is not None and path is not None:
         raise UsageError("--problem and --problem-file: choose one")
     if path is not None:
@@ -136,6 +137,7 @@ def parse(command, argv):
         if "-h" in argv or "--help" in argv:
             return None, parser, None
         raise UsageError(f"{PROG} run: error: choose the problem: --problem NAME or --problem-file FILE")
+    _KNOWN_OPTIONS[:] = [o for a in parser._actions for o in a.option_strings if o.startswith("--")]
     args, extra = parser.parse_known_args(argv)
     if args.config is not None:
         data = read_toml(args.config)
@@ -143,10 +145,23 @@ def parse(command, argv):
             raise UsageError(f"{args.config}: key 'problem' is {data.get('problem')!r} but the command is "
                              f"{command!r}")
         parser.set_defaults(**load_config(args.config, parser, data))
+        _check_config_params(args.config, data, spec)
         args, extra = parser.parse_known_args(argv)
     if "-h" in argv or "--help" in argv:
         return spec, parser, None
     return spec, args, extra
+
+
+def _check_config_params(path, data, spec):
+    """The problem's parameters given in the TOML file, each checked against its declaration,
+    naming the file and the key (the command line may still override them)."""
+    errors = []
+    for key, value in data.items():
+        for p in spec.params:
+            if key in (p.option, p.name, p.option.replace("-", "_")) and p.kind is not bool:
+                errors += p.check(value, f"{path}: key '{key}' (--{p.option})")
+    if errors:
+        raise UsageError("; ".join(errors))
 
 
 def make_plan(spec, args, command, comm):
@@ -175,32 +190,54 @@ def _cli_words(msg):
 
 
 def petsc_overrides(extra):
-    """Command-line PETSc options (-sdm_...), passed on to PETSc.Options."""
-    opts = PETSc.Options()
+    """Command-line PETSc options (-sdm_...), every one checked, then passed on to PETSc.Options
+    (nothing is set when one is refused)."""
+    pairs = []
     i = 0
     while i < len(extra):
         key = extra[i]
         if not key.startswith("-sdm_"):
-            raise UsageError(f"unrecognised argument {key!r} (PETSc options start with -sdm_)")
+            raise UsageError(_unrecognised(key))
         value = None
         if i + 1 < len(extra) and not extra[i + 1].startswith("-sdm_"):
             value = extra[i + 1]
             i += 1
         _check_vi_option(key, value)
-        opts.setValue(key[1:], value if value is not None else "")
+        pairs.append((key, value))
         i += 1
+    opts = PETSc.Options()
+    for key, value in pairs:
+        opts.setValue(key[1:], value if value is not None else "")
     if extra and not opts.hasName("options_left"):
         # PETSc lists the options nobody read when it finalises (a misspelt -sdm_ option
         # would otherwise be ignored in silence)
         opts.setValue("options_left", "")
 
 
+#: PETSc options of the step solvers checked before anything runs: the solvers' own (VI_OPTIONS)
+#: and SNES's iteration limit (-sdm_snes_max_it -5 made the semi-smooth Newton do no iteration)
+CHECKED_OPTIONS = {**VI_OPTIONS, "snes_max_it": (int, lambda v: v >= 1, "an integer >= 1")}
+
+
+#: the parser whose options an unrecognised argument is compared with (set by :func:`parse`)
+_KNOWN_OPTIONS = []
+
+
+def _unrecognised(key):
+    """``unrecognised argument``, with the nearest option when there is one."""
+    import difflib
+    if key.startswith("--"):
+        near = difflib.get_close_matches(key.split("=")[0].replace("_", "-"), _KNOWN_OPTIONS, n=1, cutoff=0.6)
+        return f"unrecognised option {key!r}" + (f"; did you mean {near[0]}?" if near else "")
+    return f"unrecognised argument {key!r} (PETSc options of the step solver start with -sdm_)"
+
+
 def _check_vi_option(key, value):
-    """The step solver's own -sdm_vi_* options, checked before anything runs (VI_OPTIONS)."""
+    """The -sdm_ options of :data:`CHECKED_OPTIONS`, checked before anything runs."""
     name = key[len("-sdm_"):]
-    if name not in VI_OPTIONS:
+    if name not in CHECKED_OPTIONS:
         return
-    kind, ok, allowed = VI_OPTIONS[name]
+    kind, ok, allowed = CHECKED_OPTIONS[name]
     try:
         good = ok(kind(value if value is not None else ""))
     except ValueError:
@@ -236,7 +273,9 @@ def execute(the_plan, args, argv, prog, comm):
               f"({the_plan.steps} steps) on {comm.size} rank(s) {what}", flush=True)
     try:
         result = the_plan.run(comm, progress=progress, handle_signals=True,
-                              extra_info={"command": " ".join([PROG] + list(argv))})
+                              extra_info={"command": " ".join([prog] + list(argv))})
+    except ProblemInputError as e:      # the problem refused its values, or a problem file's build failed
+        return say_error(prog, e, comm, 2)
     except MeshError as e:              # raised on every rank, before anything is written
         return say_error(prog, e, comm, 2)
     except StepError as e:

@@ -12,7 +12,13 @@ import ufl
 from dolfinx import fem, mesh as dmesh
 
 from sdm_dolfinx import compat
+from sdm_dolfinx.method.errors import DiscretisationError
+from sdm_dolfinx.method.frozen import FrozenData
 from sdm_dolfinx.method.pairs import MASS_TREATMENTS, get_pair
+
+#: an initial displacement below the bound by more than this times max(1, max |bound|) at a
+#: constrained vertex is refused (the scale of simulate's constraint_tol)
+INITIAL_TOL = 1e-8
 
 
 def vertex_to_dof(V, vertices):
@@ -58,9 +64,14 @@ class Discretisation:
         mass: how C is treated: ``"diagonal"`` (P0: exact), ``"lumped"`` (P1, row sums),
             ``"consistent"`` (P1: the (U, V) block system, M never formed) or ``"standard"``
             (H^h = W^h). ``None`` picks the pair's default.
+
+    Raises:
+        ProblemInputError: the Problem's own validation (:meth:`Problem.validate`).
+        DiscretisationError: the pair has no element on the mesh's cell type.
     """
 
     def __init__(self, problem, pair, mass=None):
+        problem.validate()          # a field may have been changed since the Problem was made
         self.problem = problem
         self.pair = get_pair(pair) if isinstance(pair, str) else pair
         self.mass = mass or self.pair.default_mass()
@@ -81,6 +92,9 @@ class Discretisation:
         self._assemble()
         self._constraints()
         self._dirichlet()
+        self._boundary()
+        self.frozen = FrozenData(problem, self._a_ufl, self._l_ufl, self.cx if self.num_constraints else None,
+                                 self._dirichlet_x(), self.comm)
 
     # ------------------------------------------------------------------ matrices
     def _assemble(self):
@@ -88,8 +102,12 @@ class Discretisation:
         W = self.W
         u, w = ufl.TrialFunction(W), ufl.TestFunction(W)
         rho = fem.Constant(p.mesh, PETSc.ScalarType(p.rho))
-        self.A = compat.assemble_matrix(compat.form(p.a(u, w)))
-        self.L = compat.assemble_vector(compat.form(p.l(w)))
+        self._a_ufl, self._l_ufl = p.a(u, w), p.l(w)
+        self.A = compat.assemble_matrix(compat.form(self._a_ufl))
+        self.L_form = compat.form(self._l_ufl)
+        if p.time is not None:
+            p.time.value = 0.0
+        self.L = compat.assemble_vector(self.L_form)       # L(0) for a time-dependent load
         self.B = self.C = self.c_lumped = None
         if self.mass == "standard":
             self.M = compat.assemble_matrix(compat.form(rho * ufl.inner(u, w) * ufl.dx))
@@ -111,6 +129,11 @@ class Discretisation:
         Bs.diagonalScale(L=cinv)                  # C^-1 B
         self.M = self.B.transposeMatMult(Bs)      # B^T C^-1 B
         Bs.destroy()
+
+    def load(self, t, out):
+        """Reassemble L at time ``t`` into ``out`` (a Problem declaring ``time``); returns ``out``."""
+        self.problem.time.value = t
+        return compat.assemble_vector_into(out, self.L_form)
 
     def mass_product(self):
         """The fastest ``mult(x, y)``: y = M x for this discretisation.
@@ -164,15 +187,34 @@ class Discretisation:
         return x
 
     # --------------------------------------------------------------- constraints
+    def _owned_constrained_vertices(self, verts):
+        """The owned vertices that any rank's ``constraint_vertices`` named (owned or ghost).
+
+        ``locate_entities_boundary`` finds a boundary vertex only on the ranks holding one of
+        its boundary facets, which need not include its owner: a flag on a P1 function, added
+        into the owners, makes the constrained set independent of the partition.
+        """
+        msh = self.problem.mesh
+        nloc = msh.topology.index_map(0).size_local
+        nall = nloc + msh.topology.index_map(0).num_ghosts
+        flag = fem.Function(self.Q1)
+        v2d = vertex_to_dof(self.Q1, np.arange(nall, dtype=np.int32))
+        if verts.size:
+            flag.x.array[v2d[verts]] = 1.0
+        vec = compat.petsc_vec(flag)
+        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        vec.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+        marked = flag.x.array[v2d] > 0                        # per local vertex, owned and ghost
+        self._verts_local = np.flatnonzero(marked).astype(np.int32)   # for the constrained facets
+        return np.flatnonzero(marked[:nloc]).astype(np.int32)
+
     def _constraints(self):
         """Owned constrained dofs of W (vertex dofs only, eq. (13)) and their lower bounds."""
         p = self.problem
         msh = p.mesh
-        verts = np.asarray(p.constraint_vertices(msh), dtype=np.int32)
-        nloc = msh.topology.index_map(0).size_local
-        verts = np.unique(verts[verts < nloc]) if verts.size else verts   # owned vertices
+        verts = self._owned_constrained_vertices(np.asarray(p.constraint_vertices(msh), dtype=np.int32))
         bs = self.W.dofmap.index_map_bs
-        comp = p.constraint_component or 0
+        comp = p.constraint_component or 0                  # validated: None only for a scalar u
         dofs = vertex_to_dof(self.W, verts) * bs + comp
         keep = dofs < owned_size(self.W)
         # a vertex owned here whose dof is owned elsewhere is constrained by that rank
@@ -217,7 +259,50 @@ class Discretisation:
             keep = ~np.isin(self.cdofs, self.ddofs)
             self.cverts, self.cdofs, self.lb = self.cverts[keep], self.cdofs[keep], self.lb[keep]
             self.cmeasure, self.q1_of_c, self.cx = self.cmeasure[keep], self.q1_of_c[keep], self.cx[:, keep]
-            self.num_constraints = self.comm.allreduce(len(self.cdofs), op=MPI.SUM)
+        # collective on every rank (a rank without such a dof must not skip it: deadlock)
+        self.num_constraints = self.comm.allreduce(len(self.cdofs), op=MPI.SUM)
+
+    def _boundary(self):
+        """Owned dofs of W^h (the bounded component) on the constrained boundary -- the facets whose
+        vertices are all constrained -- with their coordinates and the bound there: P2's mid-edge
+        nodes, which the vertex constraint (13) does not hold, are among them."""
+        p, W, msh = self.problem, self.W, self.problem.mesh
+        tdim, fdim = msh.topology.dim, msh.topology.dim - 1
+        mark = fem.Function(self.Q1)                        # 1 at constrained vertices, consistent on ghosts
+        verts = self._verts_local
+        if verts.size:
+            mark.x.array[vertex_to_dof(self.Q1, verts)] = 1.0
+        vec = compat.petsc_vec(mark)
+        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        vec.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+        msh.topology.create_connectivity(fdim, 0)
+        msh.topology.create_connectivity(fdim, tdim)
+        nv = msh.topology.index_map(0).size_local + msh.topology.index_map(0).num_ghosts
+        v2q = vertex_to_dof(self.Q1, np.arange(nv))
+        fv = msh.topology.connectivity(fdim, 0).array.reshape(-1, tdim)   # a simplex facet has tdim vertices
+        facets = np.flatnonzero(np.all(mark.x.array[v2q[fv]] > 0, axis=1)).astype(np.int32)
+        blocks = fem.locate_dofs_topological(W, fdim, facets)
+        bs = W.dofmap.index_map_bs
+        dofs = blocks.astype(np.int64) * bs + (p.constraint_component or 0)
+        keep = (dofs < owned_size(W)) & ~np.isin(dofs, self.ddofs)
+        order = np.argsort(dofs[keep])
+        self.bdofs = dofs[keep][order].astype(np.int32)
+        self.bx = self._dof_x()[blocks[keep][order]].T if self.bdofs.size else np.zeros((3, 0))
+        self.blb = np.asarray(p.lower_bound(self.bx), dtype=PETSc.ScalarType).reshape(-1)
+        self.num_boundary_dofs = self.comm.allreduce(len(self.bdofs), op=MPI.SUM)
+
+    def _dirichlet_x(self):
+        """Coordinates (3, n) of the owned Dirichlet dofs (None without Dirichlet data)."""
+        if self.problem.dirichlet_facets is None:
+            return None
+        bs = self.W.dofmap.index_map_bs
+        return self._dof_x()[np.unique(self.ddofs // bs)].T
+
+    def _dof_x(self):
+        """W's dof coordinates (blocks, owned and ghost), tabulated once."""
+        if getattr(self, "_dof_coords", None) is None:
+            self._dof_coords = self.W.tabulate_dof_coordinates()
+        return self._dof_coords
 
     # ------------------------------------------------------------------ helpers
     def dims(self):
@@ -237,7 +322,25 @@ class Discretisation:
         if self.ddofs.size:
             U.array[self.ddofs] = self.g.x.array[self.ddofs]
             V.array[self.ddofs] = 0.0
+        self._check_initial(U)
         return U, V
+
+    def _check_initial(self, U):
+        """DiscretisationError when U0 is below the bound at constrained vertices (beyond INITIAL_TOL)."""
+        comm = self.comm
+        gap = U.array[self.cdofs] - self.lb
+        scale = max(comm.allreduce(float(np.max(np.abs(self.lb), initial=0.0)), op=MPI.MAX), 1.0)
+        tol = INITIAL_TOL * scale
+        count = comm.allreduce(int(np.sum(gap < -tol)), op=MPI.SUM)
+        if not count:
+            return
+        k = int(np.argmin(gap)) if gap.size else -1
+        worst, owner = comm.allreduce((float(gap[k]) if k >= 0 else np.inf, comm.rank), op=MPI.MINLOC)
+        x = comm.bcast(self.cx[:, k] if comm.rank == owner else None, root=owner)
+        where = ", ".join(f"{c:.6g}" for c in x[:self.problem.mesh.geometry.dim])
+        raise DiscretisationError(
+            f"problem {self.problem.name!r}: the initial displacement is below the bound at {count} constrained "
+            f"vertices, by up to {-worst:.3g} at ({where}) (tolerance {tol:.1e}); u0 must satisfy the constraint")
 
     def rigid_vector(self, component):
         """The vector of W that represents the constant unit field in ``component``."""

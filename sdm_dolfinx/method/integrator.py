@@ -10,6 +10,10 @@ midpoint scheme, U^{n+1} for backward Euler):
 
 (eliminating Y = alpha C^-1 B (X - U^n) from the block system gives the first line with
 M = B^T C^-1 B). For the midpoint scheme alpha^2 = 4/dt^2, the paper's matrix.
+
+L is the vector assembled once, or, for a Problem that declares ``time``, L reassembled before
+every step at the time the scheme evaluates the load (:meth:`Scheme.load_time`). Before every
+step the data assembled once are checked unchanged (:class:`~sdm_dolfinx.method.frozen.FrozenData`).
 """
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -20,6 +24,7 @@ from dolfinx import fem
 
 from sdm_dolfinx import compat
 from sdm_dolfinx.method import schemes
+from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.solvers import VIError, choose_strategy, make_vi_solver, sparse_factor_matrix
 
 #: the registered time schemes' names (:mod:`sdm_dolfinx.method.schemes`)
@@ -45,6 +50,10 @@ class Integrator:
     def __init__(self, discretisation, scheme="midpoint", dt=1e-3, vi_solver="ssn", linear="auto", options=None):
         self.time_scheme = schemes.get(scheme)
         self.discretisation, self.scheme, self.dt = discretisation, scheme, float(dt)
+        self.time_dependent = discretisation.problem.time is not None
+        if self.time_dependent and self.time_scheme.load_theta is None:
+            raise DiscretisationError(f"problem {discretisation.problem.name!r} has a time-dependent load, and scheme "
+                                      f"{scheme!r} does not say when it evaluates it (Scheme.load_theta)")
         self.alpha = self.time_scheme.factor / self.dt
         self.block = discretisation.mass == "consistent"
         self.nW = discretisation.A.getLocalSize()[0]
@@ -92,22 +101,37 @@ class Integrator:
         self._tmpW2 = d.A.createVecLeft()
         self._rigid = {}
         self._mass = None if self.block else d.mass_product()     # the block variant never forms M
+        # a time-dependent load: the step's L, and L at the time of a recorded state (energies)
+        self._L_step = d.L.copy() if self.time_dependent else None
+        self._L_state, self._L_state_t = (d.L.copy(), 0.0) if self.time_dependent else (None, None)
 
-    def rhs(self, U, V):
-        """Right-hand side for the state (U^n, V^n), with Dirichlet lifting applied."""
+    def load(self, t=None):
+        """The load vector L at time ``t`` (the vector assembled once when L does not depend on
+        time, or when ``t`` is None)."""
+        if not self.time_dependent or t is None:
+            return self.discretisation.L
+        if t != self._L_state_t:
+            self.discretisation.load(t, self._L_state)
+            self._L_state_t = t
+        return self._L_state
+
+    def rhs(self, U, V, L=None):
+        """Right-hand side for the state (U^n, V^n) and the load vector ``L`` (default: the one
+        assembled once), with Dirichlet lifting applied."""
         d, a, b, nW = self.discretisation, self.alpha, self.b, self.nW
+        L = d.L if L is None else L
         t = self._tmpW
         if not self.block:
             V.copy(t)
             t.scale(a)
             t.axpy(a * a, U)
             self._mass(t, self._tmpW2)
-            self._tmpW2.axpy(1.0, d.L)
+            self._tmpW2.axpy(1.0, L)
             b.array[:] = self._tmpW2.array
         else:
             d.B.multTranspose(V, t)
             t.scale(a)
-            t.axpy(1.0, d.L)
+            t.axpy(1.0, L)
             b.array[:nW] = t.array
             bu = d.B.createVecLeft()
             d.B.mult(U, bu)
@@ -123,7 +147,11 @@ class Integrator:
             StepError: naming the step, the time and the cause.
         """
         d, nW = self.discretisation, self.nW
-        b = self.rhs(U, V)
+        changed = d.frozen.changed()
+        if changed:
+            raise StepError(f"step {n + 1} (t = {t + self.dt:.6g}): {changed}")
+        L = d.load(self.time_scheme.load_time(t, self.dt), self._L_step) if self.time_dependent else None
+        b = self.rhs(U, V, L)
         X = self.X
         X.array[:nW] = U.array          # initial guess: the previous displacement
         if self.block:
@@ -155,6 +183,26 @@ class Integrator:
         self.discretisation.B.mult(V, bv)
         return self.discretisation.solve_C(bv)
 
+    def boundary_gap(self, U):
+        """min over every dof of W^h on the constrained boundary (P2 mid-edge nodes included) of
+        U_c - bound, reduced over the ranks (+inf without such dofs)."""
+        d = self.discretisation
+        return d.comm.allreduce(float(np.min(U.array[d.bdofs] - d.blb, initial=np.inf)), op=MPI.MIN)
+
+    def vertex_gap(self, U):
+        """min over the constrained vertices of U_c - bound, reduced over the ranks."""
+        d = self.discretisation
+        return d.comm.allreduce(float(np.min(U.array[d.cdofs] - d.lb, initial=np.inf)), op=MPI.MIN)
+
+    def boundary_gap_where(self, U):
+        """The coordinates (gdim,) of the dof where :meth:`boundary_gap` is reached (collective)."""
+        d = self.discretisation
+        gap = U.array[d.bdofs] - d.blb
+        k = int(np.argmin(gap)) if gap.size else -1
+        _, owner = d.comm.allreduce((float(gap[k]) if k >= 0 else np.inf, d.comm.rank), op=MPI.MINLOC)
+        x = d.comm.bcast(d.bx[:, k] if d.comm.rank == owner else None, root=owner)
+        return x[:d.problem.mesh.geometry.dim]
+
     @property
     def active(self):
         """Which owned constrained dofs are active (the step solver's active set)."""
@@ -174,12 +222,13 @@ class Integrator:
         """Nodal multipliers of the last step at the owned constrained dofs (>= 0)."""
         return self.solver.lam
 
-    def energies(self, U, V):
-        """(kinetic, potential) of the discrete energy J^h (Theorem 2)."""
+    def energies(self, U, V, time=None):
+        """(kinetic, potential) of the discrete energy J^h (Theorem 2); a time-dependent load
+        enters the potential at ``time``, the time of the state (see :meth:`load`)."""
         d = self.discretisation
         t = self._tmpW
         d.A.mult(U, t)
-        pot = 0.5 * U.dot(t) - U.dot(d.L)
+        pot = 0.5 * U.dot(t) - U.dot(self.load(time))
         if self.block:
             cv = d.C.createVecLeft()
             d.C.mult(V, cv)

@@ -5,6 +5,7 @@ A pair is pure data; :mod:`sdm_dolfinx.discretisation` turns it into matrices.
 from dataclasses import dataclass
 
 from sdm_dolfinx import compat
+from sdm_dolfinx.method.errors import DiscretisationError
 
 #: how C = (psi_i, psi_j) enters M = B^T C^-1 B
 MASS_TREATMENTS = ("standard", "diagonal", "lumped", "consistent")
@@ -19,14 +20,27 @@ class Pair:
         w: ``(family, degree)`` of W^h, family ``"P+"`` meaning P1 + cubic bubble.
         h: ``(family, degree)`` of H^h, or ``None`` when H^h = W^h (standard Galerkin).
         well_posed: what the paper says (condition (7) proved, observed, or failing).
+        cells: the cell types its elements exist on (the rest of the method wants simplices;
+            P1+ is P1 + the cubic bubble, a triangle's: a tetrahedron's bubble has degree 4).
     """
     name: str
     w: tuple
     h: tuple
     well_posed: str
+    cells: tuple = ("triangle", "tetrahedron")
+
+    def check_cell(self, cell):
+        """DiscretisationError (one line, the pairs available on ``cell``) if this pair has no element there."""
+        if cell not in self.cells:
+            there = [p.name for p in PAIRS.values() if cell in p.cells]
+            raise DiscretisationError(
+                f"pair {self.name} is not available on {cell} meshes; "
+                + (f"the pairs available on {cell} meshes: {', '.join(there)}" if there
+                   else f"no pair is: the method needs triangles or tetrahedra"))
 
     def w_element(self, cell, shape=()):
         """The element of W^h (displacement) on ``cell`` with value shape ``shape``."""
+        self.check_cell(cell)
         family, degree = self.w
         if family == "P+":
             return compat.p1_bubble_element(cell, shape)
@@ -36,6 +50,7 @@ class Pair:
         """The element of H^h (velocity) on ``cell``, or None for the standard method (H^h = W^h)."""
         if self.h is None:
             return None
+        self.check_cell(cell)
         family, degree = self.h
         return compat.element("DG" if degree == 0 else "Lagrange", cell, degree, shape)
 
@@ -60,10 +75,10 @@ class Pair:
 
 
 PAIRS = {p.name: p for p in [
-    Pair("P1+/P0", ("P+", 1), ("P", 0), "proved (Lemma 2)"),
+    Pair("P1+/P0", ("P+", 1), ("P", 0), "proved (Lemma 2)", cells=("triangle",)),
     Pair("P1/P0", ("P", 1), ("P", 0), "no: dim H >= dim W - N_g"),
     Pair("P1/P1", ("P", 1), None, "no: standard Galerkin, Ker(B) = {0}"),
-    Pair("P1+/P1", ("P+", 1), ("P", 1), "observed (no proof in the paper)"),
+    Pair("P1+/P1", ("P+", 1), ("P", 1), "observed (no proof in the paper)", cells=("triangle",)),
     Pair("P2/P1", ("P", 2), ("P", 1), "observed (no proof in the paper)"),
     Pair("P2/P2", ("P", 2), None, "no: standard Galerkin, Ker(B) = {0}"),
 ]}

@@ -71,6 +71,8 @@ def _energies(problem, disc, Vs, reader, comm):
     roundoff = np.zeros(len(reader))
     for i in range(len(reader)):
         reader.read(i, u, v)
+        if getattr(problem, "time", None) is not None:      # a time-dependent load: l(w) at the state's time
+            problem.time.value = reader.t[i]
         uu, vv = compat.petsc_vec(u), compat.petsc_vec(v)
         roundoff[i] = 0.5 * _abs_quadratic(absA, uu) + _abs_dot(absL, uu) + 0.5 * _abs_quadratic(absM, vv)
         pot = comm.allreduce(fem.assemble_scalar(pot_form), op=MPI.SUM)

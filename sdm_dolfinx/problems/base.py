@@ -12,6 +12,7 @@ post-processing all come from that declaration, for the built-in problems and a 
 problem file alike.
 """
 import math
+import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Optional
@@ -37,11 +38,14 @@ class Problem:
         constraint_vertices: ``mesh -> local vertex indices`` where K^h acts (eq. (13)).
         lower_bound: ``x (3, n) -> (n,)`` the bound on the constrained displacement
             component at vertices of coordinates x: u_c(a_i) >= lower_bound(a_i).
-        constraint_component: component of u that is bounded (None for scalar u).
+        constraint_component: component of u that is bounded, and that ``u_probe`` records:
+            required for a vector u (an int in 0..gdim-1; the Problem refuses None), None (or 0)
+            for a scalar u.
         constraint_measure: ``q -> UFL form`` of the P1 test function q; its value at a
             vertex is that vertex's lumped measure, so stress = nodal multiplier / measure.
         dirichlet_facets: ``mesh -> local facet indices`` with u = dirichlet_value, or None.
-        dirichlet_value: callable ``x -> values`` (constant in time).
+        dirichlet_value: callable ``x -> values``, constant in time: time-dependent Dirichlet
+            data is not supported (a run whose ``dirichlet_value`` changes stops with an error).
         probe: the point (x, y) where the displacement (and, at the nearest constrained
             vertex, the contact stress) is recorded.
         extra_columns: additional time-series columns among ``contact_force``,
@@ -51,6 +55,18 @@ class Problem:
         args: the declared parameter values it was built from (set by
             :meth:`ProblemSpec.problem`; empty for a Problem built by hand).
         source: the problem file that declared it (None for a built-in problem).
+        time: a scalar ``fem.Constant`` that ``l(w)`` may use as the time t, or None. When
+            given, the load is time-dependent: L is reassembled before every step with
+            ``time`` set to the time at which the scheme evaluates the load (midpoint:
+            t_{n+1/2}, backward Euler: t_{n+1}) and, for the energies, to the time of the
+            state. Without it L is assembled once, and a Constant or Function of ``l(w)`` (or
+            of ``a(u, w)``, always) that changes during the run stops the run with an error.
+            The potential energy is then 1/2 U^T A U - U^T L(t): with a time-dependent load the
+            energy changes by the work of the load's change.
+
+    The constrained boundary, where the time series' ``gap_min_boundary`` looks at every dof
+    of W^h (P2 mid-edge nodes included, which the vertex constraint (13) does not hold), is
+    made of the mesh facets whose vertices are all constrained.
     """
     name: str
     mesh: object
@@ -73,6 +89,35 @@ class Problem:
     momentum_component: int = 1
     args: dict = field(default_factory=dict)
     source: Optional[str] = None
+    time: Optional[object] = None
+
+    def __post_init__(self):
+        self.validate()
+
+    def validate(self):
+        """Refuse, in one line naming the problem, what downstream would otherwise guess.
+
+        Raises:
+            ProblemInputError: a vector u without ``constraint_component`` (or one out of
+                range), a scalar u with a component other than 0, a ``time`` that is not a
+                scalar Constant.
+        """
+        shape, comp = tuple(self.shape), self.constraint_component
+        if shape:
+            if comp is None:
+                raise ProblemInputError(
+                    f"problem {self.name!r}: a vector problem must name constraint_component, the component "
+                    f"of u bounded at the constrained vertices (and recorded by u_probe), e.g. "
+                    f"constraint_component=1 for u_y")
+            if isinstance(comp, bool) or not isinstance(comp, (int, np.integer)) or not 0 <= comp < shape[0]:
+                raise ProblemInputError(f"problem {self.name!r}: constraint_component must be an integer in "
+                                        f"0..{shape[0] - 1} for u of shape {shape} (got {comp!r})")
+        elif comp not in (None, 0):
+            raise ProblemInputError(f"problem {self.name!r}: a scalar problem has no component {comp!r}; "
+                                    f"leave constraint_component at None")
+        if self.time is not None and np.shape(getattr(self.time, "value", None)) != ():
+            raise ProblemInputError(f"problem {self.name!r}: time must be a scalar fem.Constant used by l(w) "
+                                    f"(got {type(self.time).__name__})")
 
     def describe(self):
         """Parameters with their units, as written to ``run.json`` (``args`` and ``source``
@@ -83,6 +128,8 @@ class Problem:
             d["args"] = dict(self.args)
         if self.source:
             d["source"] = self.source
+        if self.time is not None:
+            d["load"] = "time-dependent (reassembled every step at the scheme's load time)"
         return d
 
 
@@ -157,7 +204,9 @@ class Param:
             return []
         if self.choices is not None and value not in self.choices:
             return [f"{label} must be one of {', '.join(map(str, self.choices))} (got {value!r})"]
-        if kind is int and (isinstance(value, bool) or not float(value).is_integer()):
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+            return [f"{label} must be {'an integer' if kind is int else 'a number'} (got {value!r})"]
+        if kind is int and not float(value).is_integer():
             return [f"{label} must be an integer (got {value!r})"]
         if not _finite(value):
             return [f"{label} must be a finite number of magnitude <= 1e150 (got {value})"]
@@ -184,6 +233,20 @@ class Param:
         return value
 
 
+def one_line(e):
+    """``Type: message`` of an exception on one line (its first non-empty line)."""
+    text = next((ln.strip() for ln in str(e).splitlines() if ln.strip()), "")
+    return f"{type(e).__name__}: {text}" if text else type(e).__name__
+
+
+def user_line(e, path):
+    """``, line N`` of the innermost frame of ``e``'s traceback in the file ``path`` ('' if none)."""
+    frames = [f for f in traceback.extract_tb(e.__traceback__) if Path(f.filename).resolve() == Path(path)]
+    if isinstance(e, SyntaxError) and e.lineno and Path(e.filename or "").resolve() == Path(path):
+        return f", line {e.lineno}"
+    return f", line {frames[-1].lineno}" if frames else ""
+
+
 def _finite(v):
     try:
         return math.isfinite(float(v)) and abs(float(v)) <= 1e150   # squared in energies: stay finite
@@ -205,8 +268,14 @@ class ProblemSpec:
         params: the :class:`Param` declarations, in the order of ``--help``.
         doc: the description; its first line is the command's one-line help.
         defaults: run defaults: ``pair``, ``scheme``, ``dt``, ``T`` and ``time_unit``.
-        check: ``check(values) -> [messages]`` for conditions between parameters (the
-            labels of :meth:`label`), beyond each parameter's own bounds.
+        check: ``check(values, label) -> [messages]`` for conditions between parameters
+            (``label(name)`` spells a parameter as :meth:`label` does), beyond each
+            parameter's own bounds.
+        estimate: ``estimate(values) -> {"vertices", "edges", "cells", "value_size", "by"}``,
+            the mesh the values make, counted without building it (``by``: the parameters
+            that set its size, for messages), or None; the run's memory is estimated from it
+            and a run that would not fit is refused before it starts
+            (:func:`sdm_dolfinx.run.launch.estimate_memory`).
         source: the file that declared it (None for a built-in problem).
     """
     name: str
@@ -215,6 +284,7 @@ class ProblemSpec:
     doc: str = ""
     defaults: dict = field(default_factory=dict)
     check: Optional[Callable] = None
+    estimate: Optional[Callable] = None
     source: Optional[str] = None
 
     def param(self, name):
@@ -255,7 +325,16 @@ class ProblemSpec:
     def problem(self, comm=MPI.COMM_WORLD, **given):
         """The Problem for these parameter values (the others at their defaults)."""
         values = self.values(given)
-        prob = self.build(comm, **values)
+        if self.source is None:
+            prob = self.build(comm, **values)
+        else:
+            try:
+                prob = self.build(comm, **values)
+            except ProblemInputError:
+                raise
+            except Exception as e:      # a bug in the user's file: one line naming the file and line
+                raise ProblemInputError(f"problem file {self.source}{user_line(e, self.source)}: building "
+                                        f"{self.name!r} failed: {one_line(e)}") from None
         # as run.json will hold them (lists, strings), so that a checkpoint's identity compares equal
         prob.args = {k: (str(v) if isinstance(v, Path) else list(v) if isinstance(v, tuple) else v)
                      for k, v in values.items()}

@@ -22,6 +22,7 @@ from sdm_dolfinx import compat
 
 from sdm_dolfinx.problems import base as _problem
 from sdm_dolfinx.problems.base import Param, ProblemSpec
+from sdm_dolfinx.problems import disc_mesh
 from sdm_dolfinx.problems.disc_mesh import ALGORITHM, LEVELS, LOWER, make_mesh, read_mesh
 
 #: the potential contact zones: the lower half circle (y <= centre) or the whole boundary
@@ -33,6 +34,7 @@ UNITS = {"level": "-", "h": "mm (gmsh mesh size)", "mesh_file": "- (gmsh file re
          "height": "mm (initial height of the lowest point A above the foundation y = 0)",
          "rho": "t/mm^3", "lame_lambda": "N/mm^2", "lame_mu": "N/mm^2", "gravity": "mm/s^2 (downward)",
          "v0": "mm/s (vertical, whole disc; < 0 downward)", "mass": "t per mm of thickness (rho pi R^2)",
+         "probe": "mm (point A, the lowest boundary vertex: u_probe and lambda_probe are recorded there)",
          "t": "s", "dt": "s", "T": "s",
          "energy": "N mm = mJ per mm of thickness (kinetic + elastic + gravity, 0 at rest at t = 0)",
          "kinetic": "N mm", "potential": "N mm (elastic energy minus the work of gravity)",
@@ -41,13 +43,42 @@ UNITS = {"level": "-", "h": "mm (gmsh mesh size)", "mesh_file": "- (gmsh file re
          "lambda_probe": "N/mm^2 (contact stress at A: nodal multiplier / lumped boundary length; >= 0 "
                          "compressive)",
          "contact_force": "N per mm of thickness (sum of the nodal multipliers)",
-         "momentum_y": "t mm/s = N s per mm of thickness (e_y^T M Vbar)"}
+         "momentum_y": "t mm/s = N s per mm of thickness (e_y^T M Vbar)",
+         "gap_min_boundary": "mm (min of y + u_y over every displacement dof of the contact boundary, P2 mid-edge "
+                             "nodes included; < 0: below the foundation)"}
 
 
 def sigma(u, lame_lambda, lame_mu):
     """Plane-strain Hooke's law (16): sigma = lambda tr(eps) I + 2 mu eps."""
     eps = ufl.sym(ufl.grad(u))
     return lame_lambda * ufl.tr(eps) * ufl.Identity(len(u)) + 2.0 * lame_mu * eps
+
+
+def lowest_boundary_vertex(msh, centre_x, tol):
+    """(x, y) of the mesh's lowest boundary vertex: point A, where u_probe is recorded. Ties
+    (within ``tol``: a flat bottom) go to the vertex nearest to x = ``centre_x``, then to the
+    smallest x, so that every rank and every partition picks the same one."""
+    comm, tdim = msh.comm, msh.topology.dim
+    msh.topology.create_connectivity(tdim - 1, tdim)
+    verts = dmesh.locate_entities_boundary(msh, 0, lambda x: np.full(x.shape[1], True))
+    x = (msh.geometry.x[compat.entities_to_geometry(msh, 0, verts.astype(np.int32)).reshape(-1)]
+         if verts.size else np.zeros((0, 3)))
+    ymin = comm.allreduce(float(np.min(x[:, 1], initial=np.inf)), op=MPI.MIN)
+    low = np.concatenate(comm.allgather(x[x[:, 1] <= ymin + tol, :2]))      # a few vertices
+    off = np.abs(low[:, 0] - centre_x)
+    near = low[off <= off.min() + tol]
+    a = near[np.argmin(near[:, 0])]
+    return float(a[0]), float(a[1])
+
+
+def _probe(msh, radius, height):
+    """Point A for u_probe: the lowest boundary vertex, given as (0, height) when it is there
+    (within 1e-8 radius: gmsh's A of the generated meshes), and how run.json describes it."""
+    tol = 1e-8 * radius
+    a = lowest_boundary_vertex(msh, 0.0, tol)
+    if abs(a[0]) <= tol and abs(a[1] - height) <= tol:
+        a = (0.0, height)
+    return a, f"lowest boundary vertex ({a[0]:.10g}, {a[1]:.10g})"
 
 
 def _build(comm, level, h, mesh_file, radius, height, rho, lame_lambda, lame_mu, gravity, v0, contact_zone,
@@ -81,6 +112,8 @@ def _build(comm, level, h, mesh_file, radius, height, rho, lame_lambda, lame_mu,
     # a Constant, not a literal vector: with gravity = 0 UFL would simplify the load form
     # to an empty form (no integration domain)
     g = fem.Constant(msh, np.array((0.0, -gravity), dtype=PETSc.ScalarType))
+    # a mesh of one's own need not have a vertex at (0, height) (a polygon, rotated): probe A where it is
+    probe, probe_text = _probe(msh, radius, height)
 
     return _problem.Problem(
         name="disc", mesh=msh, shape=(2,), rho=rho,
@@ -95,7 +128,7 @@ def _build(comm, level, h, mesh_file, radius, height, rho, lame_lambda, lame_mu,
         # lumped length of the contact boundary at each vertex: stress = lambda_i / |Gamma_i|
         constraint_measure=lambda q: q * ds_c,
         dirichlet_facets=None,
-        probe=(0.0, height),
+        probe=probe,
         extra_columns=("contact_force", "momentum_y", "elastic"),
         momentum_component=1,
         parameters={"level": level, "h": h, "mesh_file": None if mesh_file is None else str(mesh_file),
@@ -104,7 +137,7 @@ def _build(comm, level, h, mesh_file, radius, height, rho, lame_lambda, lame_mu,
                     "lame_mu": lame_mu, "gravity": gravity, "v0": v0, "contact_zone": contact_zone,
                     "contact_nodes": "vertices", "with_contact": with_contact, "plane": "strain",
                     "gmsh_algorithm": ALGORITHM, "geometry_degree": 2,
-                    "mass": rho * np.pi * radius ** 2},
+                    "mass": rho * np.pi * radius ** 2, "probe": probe_text},
         units=dict(UNITS),
     )
 
@@ -142,6 +175,8 @@ def _check(values, label):
             errors.append(f"{label('mesh_file')} and {label('h')}: choose one")
         elif not Path(values["mesh_file"]).is_file():
             errors.append(f"{label('mesh_file')} {values['mesh_file']}: no such file")
+    if values["h"] is not None and values["h"] < disc_mesh.MIN_H_RATIO * values["radius"]:
+        errors.append(f"{label('h')} must be >= radius / {1 / disc_mesh.MIN_H_RATIO:g} (got {values['h']} mm)")
     if values["h"] is not None and values["h"] > values["radius"]:
         errors.append(f"{label('h')} must be in (0, radius] mm (got {values['h']})")
     if values["lame_lambda"] + values["lame_mu"] <= 0:
@@ -151,7 +186,7 @@ def _check(values, label):
 
 
 SPEC = ProblemSpec(
-    name="disc", build=_build, params=PARAMS, check=_check,
+    name="disc", build=_build, params=PARAMS, check=_check, estimate=disc_mesh.estimate,
     doc=(__doc__ or "").strip(),
     defaults={"pair": "P2/P1", "scheme": "midpoint", "dt": 1e-4, "T": 0.02, "time_unit": "s"},
 )

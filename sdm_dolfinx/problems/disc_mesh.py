@@ -26,6 +26,12 @@ LEVEL_DOFS = {1: 618, 2: 2786, 3: 11130, 4: 45458, 5: 126178, 6: 512568}
 ALGORITHM = 1
 #: the paper's dof counts (Table 2), for reference
 PAPER_DOFS = {1: 622, 2: 2782, 3: 11306, 4: 45706, 5: 126892, 6: 511386}
+#: the smallest mesh size, relative to the radius: h = radius / 1000 makes ~8 million triangles
+#: (60 times level 6, h = radius / 127; ~30 million P2 dofs); below it gmsh is not even asked
+#: (h = 1e-300 left it hanging)
+MIN_H_RATIO = 1e-3
+#: a boundary vertex of a mesh file must lie on the circle to this relative tolerance
+CIRCLE_RTOL = 1e-6
 
 
 class MeshError(ValueError):
@@ -83,6 +89,34 @@ class _Gmsh:
             self.gmsh.model.remove()                   # leave the caller's gmsh as it was
 
 
+def estimate_mesh(h, radius):
+    """The mesh :func:`make_mesh` would make, counted without gmsh: about 8 (radius / h)^2
+    triangles (gmsh 4.8, MeshAdapt: 7.9 at level 6), half as many vertices plus half the
+    boundary's, and the edges by Euler's formula (for memory estimates of a run)."""
+    ratio = min(radius / h, 1e100)             # h = 1e-300 must not overflow
+    cells = 8.0 * ratio ** 2
+    vertices = 0.5 * cells + np.pi * ratio
+    return {"vertices": vertices, "edges": vertices + cells - 1, "cells": cells}
+
+
+def estimate(values):
+    """A disc run's mesh from its declared parameter ``values`` (``level``, ``h``,
+    ``mesh_file``, ``radius``), for ``ProblemSpec.estimate``: :func:`estimate_mesh`, with
+    two components of u; None for a mesh file (its size is unknown until read)."""
+    if values.get("mesh_file") is not None:
+        return None
+    h = values["h"] if values.get("h") is not None else LEVELS[values["level"]]
+    by = ("h",) if values.get("h") is not None else ("level",)
+    return {**estimate_mesh(h, values["radius"]), "value_size": 2, "by": by}
+
+
+def check_size(h, radius):
+    """MeshError when ``h`` is below :data:`MIN_H_RATIO` x ``radius``."""
+    if not h >= MIN_H_RATIO * radius:
+        raise MeshError(f"mesh size h = {h:g} mm is below radius / {1 / MIN_H_RATIO:g} = {MIN_H_RATIO * radius:g} mm "
+                        f"(about {estimate_mesh(h, radius)['cells']:.2g} triangles); give a larger h or a --level")
+
+
 def make_mesh(h, radius=20.0, centre=(0.0, 30.0), comm=MPI.COMM_WORLD, rank=0, order=2, algorithm=ALGORITHM):
     """The disc of radius ``radius`` centred at ``centre`` with gmsh mesh size ``h``.
 
@@ -98,7 +132,11 @@ def make_mesh(h, radius=20.0, centre=(0.0, 30.0), comm=MPI.COMM_WORLD, rank=0, o
 
     Returns:
         (mesh, facet_tags) with facets tagged :data:`LOWER` (y <= centre) and :data:`UPPER`.
+
+    Raises:
+        MeshError: ``h`` below :data:`MIN_H_RATIO` x ``radius`` (on every rank, before gmsh).
     """
+    check_size(h, radius)
     if comm.rank == rank:
         with _Gmsh() as gmsh:
             _build_model(gmsh, h, radius, centre, order, algorithm)
@@ -111,6 +149,7 @@ def make_mesh(h, radius=20.0, centre=(0.0, 30.0), comm=MPI.COMM_WORLD, rank=0, o
 def write_msh(path, h, radius=20.0, centre=(0.0, 30.0), order=2, algorithm=ALGORITHM):
     """Write the disc :func:`make_mesh` builds to a gmsh ``.msh`` file (serial, no dolfinx):
     a starting point for a mesh of one's own, read back with ``disc --mesh``."""
+    check_size(h, radius)
     with _Gmsh() as gmsh:
         _build_model(gmsh, h, radius, centre, order, algorithm)
         gmsh.write(str(path))
@@ -140,8 +179,10 @@ def read_mesh(path, radius, centre, comm=MPI.COMM_WORLD, rank=0):
     """The disc's mesh from a gmsh file: (mesh, facet_tags), the boundary facets tagged
     :data:`LOWER` (all nodes at y <= centre) and :data:`UPPER` from their coordinates, so
     that any mesh of the disc works. Raises :class:`MeshError` (on every rank) when the
-    file is missing or unreadable, or when its bounding box is not the disc of ``radius``
-    centred at ``centre`` (1 % of the radius)."""
+    file is missing or unreadable, when its bounding box is not the disc of ``radius``
+    centred at ``centre`` (1 % of the radius), or when a vertex of its boundary is not on
+    that circle (relative tolerance :data:`CIRCLE_RTOL`: a square or an ellipse with the
+    disc's bounding box is not the disc)."""
     # gmsh opens the file on ``rank`` and dolfinx distributes the model, as for make_mesh
     # (dolfinx 0.5.2's own gmshio.read_from_msh fails: it returns an undefined name)
     if comm.rank == rank:
@@ -167,6 +208,7 @@ def read_mesh(path, radius, centre, comm=MPI.COMM_WORLD, rank=0):
     from dolfinx import mesh as dmesh
     tdim = msh.topology.dim
     msh.topology.create_connectivity(tdim - 1, tdim)
+    _check_on_circle(msh, path, radius, centre, comm)
     tol = 1e-8 * radius
     lower = dmesh.locate_entities_boundary(msh, tdim - 1, lambda p: p[1] <= centre[1] + tol)
     every = dmesh.locate_entities_boundary(msh, tdim - 1, lambda p: np.full(p.shape[1], True))
@@ -175,6 +217,23 @@ def read_mesh(path, radius, centre, comm=MPI.COMM_WORLD, rank=0):
     values = np.concatenate([np.full(len(lower), LOWER), np.full(len(upper), UPPER)]).astype(np.int32)
     order = np.argsort(facets)
     return msh, dmesh.meshtags(msh, tdim - 1, facets[order], values[order])
+
+
+def _check_on_circle(msh, path, radius, centre, comm):
+    """MeshError unless every vertex of the boundary is at distance ``radius`` from ``centre``
+    (relative tolerance :data:`CIRCLE_RTOL`; the edge midpoints of a 6-node file may be straight)."""
+    from dolfinx import mesh as dmesh
+    verts = dmesh.locate_entities_boundary(msh, 0, lambda p: np.full(p.shape[1], True))
+    p = dmesh.compute_midpoints(msh, 0, verts)[:, :2] if len(verts) else np.zeros((0, 2))
+    err = np.abs(np.hypot(p[:, 0] - centre[0], p[:, 1] - centre[1]) - radius) / radius
+    k = int(np.argmax(err)) if len(err) else -1
+    worst = max(comm.allgather((float(err[k]), tuple(map(float, p[k]))) if k >= 0 else (-1.0, None)),
+                key=lambda t: t[0])
+    if worst[0] > CIRCLE_RTOL:
+        (x, y), d = worst[1], np.hypot(worst[1][0] - centre[0], worst[1][1] - centre[1])
+        raise MeshError(f"{path}: the boundary is not the circle of radius {radius:g} mm centred at ({centre[0]:g}, "
+                        f"{centre[1]:g}): its vertex ({x:.6g}, {y:.6g}) is {d:.6g} mm from the centre (relative "
+                        f"tolerance {CIRCLE_RTOL:g})")
 
 
 def p2_dofs(msh):

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from sdm_dolfinx.problems.base import ProblemInputError, ProblemSpec
+from sdm_dolfinx.problems.base import ProblemInputError, ProblemSpec, one_line, user_line
 
 _REGISTRY = {}
 
@@ -97,21 +97,6 @@ def load_file(path):
                                 f"(see docs/add_a_problem.md)")
     spec.source = source
     return register(spec)
-
-
-def one_line(e):
-    """``Type: message`` of an exception on one line (its first non-empty line)."""
-    text = next((ln.strip() for ln in str(e).splitlines() if ln.strip()), "")
-    return f"{type(e).__name__}: {text}" if text else type(e).__name__
-
-
-def user_line(e, path):
-    """``, line N`` of the innermost frame of ``e``'s traceback in the file ``path`` ('' if none)."""
-    import traceback
-    frames = [f for f in traceback.extract_tb(e.__traceback__) if Path(f.filename).resolve() == Path(path)]
-    if isinstance(e, SyntaxError) and e.lineno and Path(e.filename or "").resolve() == Path(path):
-        return f", line {e.lineno}"
-    return f", line {frames[-1].lineno}" if frames else ""
 
 
 def resolve(problem):

@@ -10,6 +10,8 @@ Every input is checked before anything is written (:class:`RunInputError`, one l
 run's problem, parameters and options are recorded in ``run.json``, so a restart, the
 ``energy`` command and the pictures rebuild the same run from the folder alone.
 """
+import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -30,6 +32,23 @@ RUN_DEFAULTS = {"pair": "P1+/P0", "scheme": "midpoint", "dt": 1e-3, "T": 0.8, "m
 RESTART_MAY_CHANGE = ("checkpoint_every",)
 #: the longest run accepted (T / dt): ~100 bytes of time series per step in memory
 MAX_STEPS = 1e7
+#: T must be a whole number of steps of dt, to this relative tolerance
+STEP_RTOL = 1e-9
+
+# ---- memory estimates (measured with the run's maxrss on dolfinx 0.5.2 / PETSc 3.18, 1 rank,
+# membrane N = 100 to 400 and disc levels 4-5, default solver; see estimate_memory)
+#: bytes per dof of W^h and per component of u, by pair (the run's matrices, factorisation
+#: or AMG hierarchy, vectors); the P?/P1 pairs pay for the denser M = B^T C^-1 B
+BYTES_PER_DOF = {"P1+/P0": 1300, "P1/P0": 2200, "P1/P1": 1700, "P1+/P1": 3000, "P2/P1": 4000, "P2/P2": 1400}
+#: for a pair not measured
+DEFAULT_BYTES_PER_DOF = 4000
+#: an inf-sup inspection (SuperLU of B B^T, ARPACK), any pair
+INSPECT_BYTES_PER_DOF = 3000
+#: solvers that factorise a matrix of K's size at every iteration need about twice as much
+#: (measured: --linear lu, P2/P1, N = 100: 6.8 kB per dof)
+REFACTORISING = 2.0
+#: one process before any mesh: Python, dolfinx, PETSc, gmsh (measured 100-150 MB)
+BYTES_PER_PROCESS = 150e6
 
 
 class RunInputError(ValueError):
@@ -89,7 +108,9 @@ def plan(problem=None, params=None, *, out=None, overwrite=False, restart=False,
         raise RunInputError(str(e)) from None
     opts = {**RUN_DEFAULTS, **{k: v for k, v in spec.defaults.items() if k in RUN_DEFAULTS}, **options}
     check_options(opts)
+    check_memory(spec, values, [opts["pair"]], comm, cli, options=opts, steps=num_steps(opts["T"], opts["dt"]))
     if out is not None:
+        check_out_name(out, cli)
         try:
             check_out(Path(out), overwrite, comm)
         except RunFolderError as e:
@@ -118,6 +139,8 @@ def check_options(o):
         elif o["T"] / o["dt"] > MAX_STEPS:
             errors.append(f"T / dt = {o['T'] / o['dt']:.3g} steps: at most {MAX_STEPS:.0e} (the time series "
                           f"alone would take {o['T'] / o['dt'] * 100 / 1e9:.3g} GB)")
+        else:
+            errors += _check_whole_steps(o["T"], o["dt"])
     for k in ("write_every", "checkpoint_every"):
         if o[k] is not None and (not isinstance(o[k], int) or o[k] < 1):
             errors.append(f"{k} must be an integer >= 1 (got {o[k]!r})")
@@ -136,6 +159,143 @@ def check_options(o):
         errors.append(f"unknown linear strategy {o['linear']!r}; choose one of {', '.join(LINEAR_STRATEGIES)}")
     if errors:
         raise RunInputError("; ".join(errors))
+
+
+def _check_whole_steps(T, dt):
+    """A message when T is not a whole number of steps of dt (relative tolerance
+    :data:`STEP_RTOL`): the run would silently stop short of T. The steps are counted as the
+    run counts them (:func:`~sdm_dolfinx.run.result.num_steps`), so T = 0.02, dt = 1e-4
+    (200.00000000000003 steps in floating point) is 200 steps and accepted."""
+    n = num_steps(T, dt)
+    if abs(n * dt - T) <= STEP_RTOL * T:
+        return []
+    return [f"T = {_num(T)} is not a multiple of dt = {_num(dt)}: {n} steps end at t = {_num(n * dt)}; give "
+            f"T = {_num(n * dt)} or {_num((n + 1) * dt)}"]
+
+
+def _num(x):
+    """A time for messages: 0.009, not 0.009000000000000001."""
+    return f"{x:.12g}"
+
+
+def check_out_name(out, cli=False):
+    """RunInputError for an output folder the file system cannot take: an empty name (which
+    would be the current folder) or a name component longer than the file system allows
+    (checked before any folder is created, so nothing is left behind)."""
+    label = "--out" if cli else "out"
+    if str(out).strip() == "":
+        raise RunInputError(f"{label} is empty: name a folder (. for the current one)")
+    path = Path(out)
+    d = path if path.is_absolute() else Path.cwd()
+    try:
+        name_max = os.pathconf(_existing_parent(d), "PC_NAME_MAX")
+    except (OSError, ValueError):
+        name_max = 255
+    for part in path.parts:
+        if len(os.fsencode(part)) > name_max:
+            short = part if len(part) <= 40 else part[:20] + "..." + part[-10:]
+            raise RunInputError(f"{label} {short}: a folder name of {len(os.fsencode(part))} characters; the file "
+                                f"system allows {name_max}")
+    if len(os.fsencode(str(path.absolute()))) > 4000:
+        raise RunInputError(f"{label}: the path is {len(os.fsencode(str(path.absolute())))} characters long; "
+                            f"at most 4000")
+
+
+def _existing_parent(path):
+    while not path.exists():
+        path = path.parent
+    return path
+
+
+# ------------------------------------------------------------------------------- memory
+def available_memory(comm=MPI.COMM_WORLD):
+    """The machine's available memory in bytes (``MemAvailable`` of /proc/meminfo, read on
+    rank 0), or None where there is no /proc/meminfo."""
+    def read():
+        try:
+            with open("/proc/meminfo") as fh:
+                for line in fh:
+                    if line.startswith("MemAvailable:"):
+                        return float(line.split()[1]) * 1024.0
+        except (OSError, ValueError, IndexError):
+            return None
+        return None
+    return comm.bcast(read() if comm.rank == 0 else None, root=0)
+
+
+def _lagrange_dofs(family, degree, counts):
+    """Nodes of one component of a Lagrange (``P``), P1 + bubble (``P+``) or DG0 space on a
+    triangle mesh with these entity counts."""
+    v, e, c = counts["vertices"], counts["edges"], counts["cells"]
+    if family == "P+":
+        return v + c
+    if degree == 0:
+        return c
+    return v + (degree - 1) * e + (degree - 1) * (degree - 2) // 2 * c
+
+
+def estimate_memory(spec, values, pair, options=None, steps=0, ranks=1, inspect=False):
+    """(bytes, dim W^h) that a run (or with ``inspect`` an inf-sup inspection) of ``spec``
+    with parameter ``values`` and ``pair`` needs, or None when the problem declares no
+    estimate (``spec.estimate(values)`` -> mesh entity counts, see the membrane).
+
+    A model, not a measurement: bytes per dof of W^h (:data:`BYTES_PER_DOF`, per component
+    of u: a vector problem's rows have twice the nonzeros), doubled for solvers that refactorise
+    (:data:`REFACTORISING`), plus :data:`BYTES_PER_PROCESS` per rank and ~100 bytes per step of
+    time series. Measured runs needed 0.75-0.9 times the estimate (membrane N = 100-400, every pair;
+    disc levels 4-5; inspections 0.75).
+    """
+    estimate = getattr(spec, "estimate", None)
+    counts = estimate(values) if estimate is not None else None
+    if counts is None:
+        return None
+    pair = get_pair(pair) if isinstance(pair, str) else pair
+    vs = counts.get("value_size", 1)
+    dim_w = vs * _lagrange_dofs(*pair.w, counts)
+    if inspect:
+        per_dof = INSPECT_BYTES_PER_DOF
+    else:
+        per_dof = BYTES_PER_DOF.get(pair.name, DEFAULT_BYTES_PER_DOF) * vs
+        o = options or {}
+        if o.get("linear") == "lu" or o.get("vi_solver", "ssn") != "ssn":
+            per_dof *= REFACTORISING
+    return float(per_dof) * dim_w + BYTES_PER_PROCESS * ranks + 100.0 * steps, dim_w
+
+
+def check_memory(spec, values, pairs, comm=MPI.COMM_WORLD, cli=False, options=None, steps=0, inspect=False):
+    """RunInputError when the estimated memory (:func:`estimate_memory`, the largest over
+    ``pairs``) exceeds the machine's available memory: "--N 4500 needs about 79 GB (dim W^h =
+    6.1e+07 with P1+/P0), this machine has 21 GB available"."""
+    worst = None
+    for pair in pairs:
+        try:
+            est = estimate_memory(spec, values, pair, options, steps, comm.size, inspect)
+        except ValueError:          # an unknown pair: check_options says so
+            continue
+        if est is not None and (worst is None or est[0] > worst[0]):
+            worst = (est[0], est[1], pair if isinstance(pair, str) else pair.name)
+    if worst is None:
+        return
+    avail = available_memory(comm)
+    if avail is None or worst[0] <= avail:
+        return
+    by = getattr(spec, "estimate")(values).get("by", ())
+    what = " ".join(f"--{spec.param(k).option} {_value(values[k])}" if cli else f"{k} = {_value(values[k])}"
+                    for k in by) or f"problem {spec.name}"
+    raise RunInputError(f"{what} needs about {_gb(worst[0])} GB (dim W^h = {worst[1]:.2g} with {worst[2]}), this "
+                        f"machine has {_gb(avail)} GB available")
+
+
+def _value(v):
+    return " ".join(map(str, v)) if isinstance(v, (tuple, list)) else str(v)
+
+
+def _gb(b):
+    """Bytes in GB for messages: 79, 2.4, or 1e+300."""
+    g = b / 1e9
+    if not math.isfinite(g) or g >= 1e6:
+        return f"{g:.2g}"
+    return f"{g:.0f}" if g >= 10 else f"{g:.2g}"
 
 
 def _restart_plan(out, options, comm):

@@ -1,4 +1,5 @@
 """What a run returns (:class:`Result`) and the time series it records (:class:`TimeSeries`)."""
+import warnings
 from dataclasses import dataclass, field
 
 from mpi4py import MPI
@@ -10,6 +11,19 @@ from sdm_dolfinx.method.integrator import StepError
 #: the columns of every run's time series; a Problem adds its ``extra_columns``
 BASE_COLUMNS = ("step", "t", "energy", "kinetic", "potential", "u_probe", "lambda_probe", "n_active",
                 "newton_its")
+#: the column added when the constrained boundary has dofs: min over every dof of W^h on it (P2 mid-edge
+#: nodes included) of U_c - bound at the end of the step (the constraint (13) holds at vertices only)
+BOUNDARY_GAP = "gap_min_boundary"
+#: warn (once) when a dof of the constrained boundary is below the bound by more than the constrained
+#: vertices are (the midpoint scheme's own O(dt) dip of U^{n+1}) plus this times the diameter of the
+#: constrained boundary (the diagonal of its bounding box)
+BOUNDARY_GAP_TOL = 1e-3
+
+
+class BoundaryGapWarning(UserWarning):
+    """The constrained boundary sinks below the bound between constrained vertices (P2 mid-edge
+    nodes): one line on rank 0, once per run; silence it with ``warnings.simplefilter("ignore",
+    BoundaryGapWarning)``."""
 
 
 def num_steps(T, dt):
@@ -25,15 +39,23 @@ class TimeSeries:
 
     def __init__(self, integ, problem, probe, cprobe, nsteps):
         self.integ, self.problem, self.probe, self.cprobe = integ, problem, probe, cprobe
-        self.columns = BASE_COLUMNS + tuple(problem.extra_columns)
+        d = integ.discretisation
+        boundary = (BOUNDARY_GAP,) if d.num_boundary_dofs else ()
+        self.columns = BASE_COLUMNS + tuple(problem.extra_columns) + boundary
         self.data = {c: np.zeros(nsteps + 1) for c in self.columns}
         self.comm = problem.mesh.comm
+        if boundary:
+            lo, hi = np.empty(3), np.empty(3)
+            self.comm.Allreduce(np.ascontiguousarray(d.bx.min(axis=1, initial=np.inf)), lo, op=MPI.MIN)
+            self.comm.Allreduce(np.ascontiguousarray(d.bx.max(axis=1, initial=-np.inf)), hi, op=MPI.MAX)
+            self.boundary_tol = BOUNDARY_GAP_TOL * float(np.linalg.norm(hi - lo))
+        self.warned = False
 
     def record(self, n, t, U, V, lam, its, n_active):
         """Compute row ``n`` (time ``t``) from the state; returns it as a dict (with
         ``linear_its_total``, the cumulative linear iterations, for observers)."""
         integ, comm = self.integ, self.comm
-        kin, pot = integ.energies(U, V)
+        kin, pot = integ.energies(U, V, t)
         row = {"step": n, "t": t, "energy": kin + pot, "kinetic": kin, "potential": pot,
                "u_probe": self.probe(U), "lambda_probe": self.cprobe(lam), "n_active": n_active,
                "newton_its": its}
@@ -42,13 +64,43 @@ class TimeSeries:
         if "momentum_y" in self.columns:
             row["momentum_y"] = integ.momentum(V, self.problem.momentum_component)
         if "elastic" in self.columns:            # 1/2 U^T A U = potential + U^T L
-            row["elastic"] = pot + U.dot(integ.discretisation.L)
+            row["elastic"] = pot + U.dot(integ.load(t))
+        if BOUNDARY_GAP in self.columns:
+            row[BOUNDARY_GAP] = integ.boundary_gap(U)
+            self._warn(n, t, U, row[BOUNDARY_GAP])
         row["linear_its_total"] = integ.linear_its
         if not np.isfinite(row["energy"]):
             raise StepError(f"step {n} (t = {t:.6g}): the energy is not finite ({row['energy']})")
         for c in self.columns:
             self.data[c][n] = row[c]
         return row
+
+    def _warn(self, n, t, U, gap):
+        """A :class:`BoundaryGapWarning` on rank 0, once per run, when the constrained boundary sinks
+        below the bound between the constrained vertices by more than ``boundary_tol``."""
+        if self.warned:
+            return
+        vertex = self.integ.vertex_gap(U)
+        if gap >= min(vertex, 0.0) - self.boundary_tol:
+            return
+        self.warned = True
+        x = self.integ.boundary_gap_where(U)
+        if self.comm.rank == 0:
+            where = ", ".join(f"{c:.6g}" for c in x)
+            # warn_explicit with no source file: one line ("sdm_dolfinx:0: BoundaryGapWarning: ...")
+            warnings.warn_explicit(
+                f"step {n} (t = {t:.6g}): a dof of W^h on the constrained boundary is {-gap:.3g} below the bound at "
+                f"({where}), the constrained vertices within {max(0.0, -vertex):.3g} (the constraint holds at "
+                f"vertices only, eq. (13); tolerance {self.boundary_tol:.3g} = {BOUNDARY_GAP_TOL:g} x the "
+                f"boundary's diameter); every step's minimum is in the column {BOUNDARY_GAP}",
+                BoundaryGapWarning, "sdm_dolfinx", 0)
+
+    def summary(self, first=0):
+        """What ``run.json`` gets from the time series of steps ``first``+1.. (the minimum of
+        :data:`BOUNDARY_GAP` over the run, when the column exists)."""
+        if BOUNDARY_GAP not in self.columns:
+            return {}
+        return {"min_gap_boundary": float(np.min(self.data[BOUNDARY_GAP][first + 1:], initial=np.inf))}
 
     def load_rows(self, lines):
         """Fill rows from CSV lines (``step,...`` in the column order; a restart's history)."""
@@ -67,6 +119,8 @@ class Result:
         info: what ``run.json`` holds (parameters, dofs, versions, wall time, ...).
         gap_imposed: per step, min over constraints of (constrained iterate - bound).
         gap_end: per step, min over constraints of (U^{n+1} - bound).
+            (``timeseries["gap_min_boundary"]`` has the same at every dof of the constrained
+            boundary, P2 mid-edge nodes included: row n + 1 for step n.)
         U, V: final state vectors (PETSc, owned entries); V is Vbar in W, or V in H for the
             consistent block variant.
         discretisation: the :class:`sdm_dolfinx.method.discretisation.Discretisation`.

@@ -74,6 +74,9 @@ class SemismoothNewton:
             self.rtol, self.max_it, self.monitor = vi_tolerances(scope, rtol, max_it)
             self._setup(K)
         self.max_it = self.snes.getTolerances()[3]       # -sdm_snes_max_it may change it
+        if self.max_it < 1:
+            self.destroy()
+            raise VIError(f"-{self.prefix}snes_max_it (or -sdm_snes_max_it): {self.max_it} is not an integer >= 1")
 
     def _setup(self, K):
         """The Alart–Curnier parameter, the linear solvers and the SNES (inside the scope)."""

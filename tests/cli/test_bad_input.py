@@ -1,5 +1,7 @@
 """Bad input to the run commands: one line, exit 2, nothing written; runs are never overwritten by accident; TOML and the command line."""
+import importlib
 import json
+import re
 
 from mpi4py import MPI
 
@@ -8,6 +10,8 @@ import pytest
 from sdm_dolfinx import cli
 
 COMM = MPI.COMM_WORLD
+#: the module (``sdm_dolfinx.run.launch`` is also the name of its function)
+launch = importlib.import_module("sdm_dolfinx.run.launch")
 
 
 def _write(path, text):
@@ -49,7 +53,6 @@ BAD = [
     (["membrane"], "overwrite = 1\n", "key 'overwrite'"),
     (["membrane"], "N = 4\ndt = \n", "invalid TOML"),
     (["membrane"], 'problem = "disc"\n', "key 'problem'"),
-    (["membrane"], "N = 0\n", "--N"),
     (["membrane", "--restart", "/nonexistent/run"], None, "no run.json"),
     (["membrane", "-sdm_vi_rtol", "-1"], None, "-sdm_vi_rtol"),
     (["membrane", "-sdm_vi_max_it", "0"], None, "-sdm_vi_max_it"),
@@ -72,24 +75,89 @@ BAD = [
     (["membrane", "--dt", "1e-300", "--T", "1"], None, "at most"),
     (["membrane"], "write_every = 2\nwrite-every = 3\n", "same option"),
     (["membrane"], b"\xff\xfe\x00N = 3\n", "not a TOML file"),
+    # runs too large for the machine: refused up front with the memory they would need
+    (["membrane", "--N", "10000000"], None, "--N 10000000 needs about"),
+    (["membrane", "--N", "2147483648"], None, "--N 2147483648 needs about"),
+    (["membrane", "--N", "100000", "--diagonal", "crossed"], None, "--N 100000 --diagonal crossed needs about"),
+    (["disc", "--h", "1e-300"], None, "1e-300"),
+    (["membrane", "-sdm_snes_max_it", "-5"], None, "-sdm_snes_max_it: '-5' is not an integer >= 1"),
+    (["membrane", "-sdm_snes_max_it", "0"], None, "-sdm_snes_max_it"),
+    (["membrane", "--out", ""], None, "--out"),
+    (["membrane", "--out", "x" * 300], None, "300 characters"),
+    (["membrane", "--out", "a/" + "x" * 300 + "/b"], None, "300 characters"),
+    (["membrane", "--config", "/dev/zero"], None, "not a regular file"),
+    (["membrane", "--config", "/dev/null"], None, "not a regular file"),
+    (["membrane"], "#" + "x" * (1 << 20) + "\n", "larger than 1 MB"),
+    (["membrane", "--dt", "0.003", "--T", "0.01"], None,
+     "T = 0.01 is not a multiple of dt = 0.003: 3 steps end at t = 0.009; give T = 0.009 or 0.012"),
+    (["disc", "--dt", "3e-4", "--T", "0.02"], None, "T = 0.02 is not a multiple of dt = 0.0003"),
+    (["membrane"], "write-every = 0\n", "bad.toml: key 'write-every': must be an integer >= 1 (got 0)"),
+    (["membrane"], "checkpoint-every = -2\n", "bad.toml: key 'checkpoint-every'"),
+    (["membrane"], "N = 0\n", "bad.toml: key 'N' (--N) must be >= 1 (got 0)"),
+    (["disc"], "radius = -1.0\n", "bad.toml: key 'radius' (--radius) must be > 0"),
 ]
 
 
 @pytest.mark.parametrize("argv,toml,message", BAD)
-def test_bad_input_is_refused(argv, toml, message, mpi_tmp_path, capsys):
-    """Status 2, a one-line message naming the problem, no traceback, nothing written."""
-    out = mpi_tmp_path / "never"
+def test_bad_input_is_refused(argv, toml, message, mpi_tmp_path, capsys, monkeypatch):
+    """Status 2, a one-line message naming the problem, no traceback, nothing written (neither
+    in --out nor in the current folder)."""
+    out, cwd = mpi_tmp_path / "never", mpi_tmp_path / "cwd"
+    if COMM.rank == 0:
+        cwd.mkdir()
+    COMM.Barrier()
+    monkeypatch.chdir(cwd)
     argv = list(argv)
     if toml is not None:
         argv += ["--config", _write(mpi_tmp_path / "bad.toml", toml)]
-    if argv[0] in ("membrane", "disc"):
+    if argv[0] in ("membrane", "disc") and "--out" not in argv:
         argv += ["--out", str(out)]
     assert cli.main(argv) == 2
     err = capsys.readouterr().err
     if COMM.rank == 0:
         assert message in err and len(err.strip().splitlines()) == 1, err
         assert "Traceback" not in err
+    assert not out.exists() and not list(cwd.iterdir())
+
+
+def test_too_large_for_this_machine(mpi_tmp_path, capsys, monkeypatch):
+    """A run whose estimated memory exceeds what the machine has available is refused with
+    both numbers (here the machine is said to have 16 GB: --N 4500 needs ~80 GB with P1+/P0),
+    and so is an inf-sup inspection; a run that fits is accepted."""
+    monkeypatch.setattr(launch, "available_memory", lambda comm=COMM: 16e9)
+    out = mpi_tmp_path / "never"
+    assert cli.main(["membrane", "--N", "4500", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    if COMM.rank == 0:
+        assert re.fullmatch(r"python -m sdm_dolfinx membrane: error: --N 4500 needs about (\d+) GB \(dim W\^h = "
+                            r"6\.1e\+07 with P1\+/P0\), this machine has 16 GB available\n", err), err
+        assert 60 <= int(re.search(r"about (\d+) GB", err).group(1)) <= 100
+    assert cli.main(["inspect", "--N", "4500"]) == 2
+    assert "--N 4500 needs about" in capsys.readouterr().err or COMM.rank != 0
     assert not out.exists()
+    plan = launch.plan("membrane", {"N": 200}, out=None)      # ~0.3 GB
+    assert plan.spec.name == "membrane"
+    with pytest.raises(launch.RunInputError, match=r"^N = 4500 needs about"):
+        launch.plan("membrane", {"N": 4500})
+
+
+def test_steps_are_a_multiple_of_dt():
+    """T must be a whole number of steps: the paper's T / dt (multiples up to round-off) are
+    accepted, through the API too; the message names both neighbours."""
+    for T, dt in ((0.02, 1e-4), (0.02, 1e-5), (0.8, 0.0003125), (0.8, 0.00015625), (0.4, 2.5e-05), (0.8, 0.01),
+                  (0.3, 0.1), (0.7, 0.1), (1.0, 1e-3)):
+        assert launch.plan("membrane", {"N": 4}, T=T, dt=dt).steps == round(T / dt)
+    with pytest.raises(launch.RunInputError, match=r"^T = 0\.01 is not a multiple of dt = 0\.003: 3 steps end at "
+                                                    r"t = 0\.009; give T = 0\.009 or 0\.012$"):
+        launch.plan("membrane", T=0.01, dt=0.003)
+
+
+@pytest.mark.parametrize("value", ["-6e-1", "-6E-1", "-.6", "-6.0e-01", "-0.6"])
+def test_negative_numbers_in_exponent_notation(value):
+    """``--f -6e-1`` is a value, not an option."""
+    from sdm_dolfinx.cli import run
+    spec, args, extra = run.parse("membrane", ["--f", value, "--obstacle", "-1e-3", "--out", "x"])
+    assert args.f == -0.6 and args.obstacle == -1e-3 and extra == []
 
 
 @pytest.mark.parametrize("status,checkpoint,message", [

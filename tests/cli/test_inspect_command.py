@@ -55,6 +55,10 @@ def test_sweep_prints_table_and_writes_png(mpi_tmp_path, capsys):
     (["--png", "x.png"], "--png needs --sweep"),
     (["--tol", "-1"], "non-negative"),
     (["--bogus"], "unrecognized arguments"),
+    (["--N", "100000"], "--N 100000 needs about"),
+    (["--N", "2147483648"], "--N 2147483648 needs about"),
+    (["--sweep", "4", "2000000"], "--sweep 2000000: --N 2000000 needs about"),
+    (["disc", "--h", "1e-300"], "1e-300"),
 ])
 def test_bad_input_one_line_exit_2(argv, message, capsys):
     assert cli.main(["inspect", *argv]) == 2

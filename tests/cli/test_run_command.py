@@ -12,7 +12,7 @@ import pytest
 from sdm_dolfinx import cli
 
 COMM = MPI.COMM_WORLD
-HEADER = "step,t,energy,kinetic,potential,u_probe,lambda_probe,n_active,newton_its"
+HEADER = "step,t,energy,kinetic,potential,u_probe,lambda_probe,n_active,newton_its,gap_min_boundary"
 
 
 def test_run_writes_csv_json_and_xdmf(mpi_tmp_path):

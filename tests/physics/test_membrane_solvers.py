@@ -31,7 +31,7 @@ def test_solver_failure_names_step_and_time(mpi_tmp_path):
         info = json.loads((mpi_tmp_path / "run.json").read_text())
         assert info["status"] == "failed" and "step" in info["error"]
         rows = (mpi_tmp_path / "timeseries.csv").read_text().splitlines()
-        assert len(rows) >= 2 and all(len(r.split(",")) == 9 for r in rows)
+        assert len(rows) >= 2 and all(len(r.split(",")) == 10 for r in rows)
 
 
 def test_vinewtonrsls_cycles_on_p2p1_where_the_semismooth_newton_converges():

@@ -210,15 +210,31 @@ def test_semismooth_newton_every_strategy(string, linear, clean_options):
     solver.destroy()
 
 
-def test_snes_vi(string, clean_options):
-    """PETSc's vinewtonrsls solves the same LCP (to its SNES tolerance). Not vinewtonssls:
-    it writes its semi-smooth Jacobian into K (SnesVI passes K as the Jacobian) and does not
-    converge here."""
+@pytest.mark.parametrize("snes_type", ["vinewtonrsls", "vinewtonssls"])
+def test_snes_vi(string, snes_type, clean_options):
+    """PETSc's vinewtonrsls and vinewtonssls solve the same LCP (to their SNES tolerance) and
+    leave the step matrix K as it was (vinewtonssls writes its semi-smooth Jacobian into the
+    Jacobian matrix it is given: SnesVI gives it its own)."""
     d, problem = string
-    solver = make_vi_solver("vinewtonrsls", d.K, d.cdofs, d.lb)
-    assert isinstance(solver, SnesVI) and solver.snes.getType() == "vinewtonrsls"
+    K0 = d.K.copy()
+    solver = make_vi_solver(snes_type, d.K, d.cdofs, d.lb)
+    assert isinstance(solver, SnesVI) and solver.snes.getType() == snes_type
     solve_and_check(solver, d, problem, ITERATIVE_RTOL)
+    K0.axpy(-1.0, d.K)
+    assert K0.norm() == 0.0
+    # a second step from the solution: converged at once (rsls) or in a few iterations (ssls)
+    assert solver.solve(d.b, d.x)["its"] <= 3
     solver.destroy()
+    K0.destroy()
+
+
+@pytest.mark.parametrize("snes_type", ["vinewtonrsls", "vinewtonssls"])
+def test_snes_max_it_below_one_is_refused(string, snes_type, clean_options):
+    """-sdm_snes_max_it 0 or -5 is refused when the solver is made, not at the first step."""
+    d, _ = string
+    for value in ("0", "-5"):
+        with pytest.raises(VIError, match=r"snes_max_it.*is not an integer >= 1"):
+            make_vi_solver(snes_type, d.K, d.cdofs, d.lb, options={"snes_max_it": value})
 
 
 @pytest.mark.parametrize("linear", ["schur", "cg-factor", "lu"])

@@ -8,10 +8,20 @@ class Scheme:
         name: the registry's name (the ``--scheme`` choice).
         factor: alpha = factor / dt in the step matrix alpha^2 M + A.
         constrained: the iterate the constraint is imposed on (for ``run.json``).
+        load_theta: a time-dependent load of step n -> n+1 is evaluated at t_n + load_theta dt
+            (None: the scheme does not say, and refuses time-dependent loads).
     """
     name = None
     factor = None
     constrained = None
+    load_theta = None
+
+    def load_time(self, t, dt):
+        """The time at which the step from ``t`` to ``t + dt`` evaluates a time-dependent load."""
+        if self.load_theta is None:
+            raise ValueError(f"scheme {self.name!r} does not say when it evaluates a time-dependent load "
+                             f"(Scheme.load_theta)")
+        return t + self.load_theta * dt
 
     def displacement(self, x, Un):
         """U^{n+1} from the constrained iterate x and U^n (arrays)."""

@@ -1,0 +1,79 @@
+"""What a run assumes constant, and a check that it stayed so.
+
+A is assembled and factorised once, L once (unless the Problem declares ``time``), and the
+bounds and Dirichlet values are evaluated once: a ``fem.Constant`` or ``fem.Function`` of
+those forms, or a callable, that a user changes during the run (in ``on_step``, say) would
+otherwise have no effect at all. :class:`FrozenData` keeps their values at the start and
+names the first one that changed; the integrator checks before every step (one small
+collective) and stops the run with that line.
+"""
+from mpi4py import MPI
+
+import numpy as np
+
+
+def _form_data(form, where, hint):
+    """(label, current value) getters of the Constants and Functions of a UFL form."""
+    items = []
+    for c in form.constants():
+        items.append((f"the Constant {c} of {where}", lambda c=c: np.array(c.value, copy=True), hint, True))
+    for f in form.coefficients():
+        name = getattr(f, "name", None) or str(f)
+        items.append((f"the Function {name!r} of {where}", lambda f=f: f.x.array.copy(), hint, False))
+    return items
+
+
+class FrozenData:
+    """The data of a Discretisation assembled or evaluated once, with their values at the start.
+
+    Args:
+        problem: the Problem.
+        a_form, l_form: the UFL forms a(u, w) and l(w) as assembled.
+        cx: coordinates (3, n) of the owned constrained vertices (the bound is checked there);
+            None when the problem has no constraint anywhere.
+        xd: coordinates (3, n) of the owned Dirichlet dofs; None without Dirichlet data.
+        comm: the mesh's communicator.
+    """
+
+    def __init__(self, problem, a_form, l_form, cx, xd, comm):
+        self.comm = comm
+        items = _form_data(a_form, "a(u, w)", "A is assembled once: a stiffness that changes during a run is "
+                                              "not supported")
+        if problem.time is None:
+            items += _form_data(l_form, "l(w)", "L is assembled once unless the Problem declares its time "
+                                                "dependence: Problem(time=t), t a fem.Constant used by l(w)")
+        if cx is not None:
+            items.append(("the bound lower_bound(x) at the constrained vertices",
+                          lambda: np.asarray(problem.lower_bound(cx), dtype=float).copy(),
+                          "a bound that moves during a run is not supported", False))
+        if xd is not None:
+            items.append(("dirichlet_value(x) on the Dirichlet boundary",
+                          lambda: np.asarray(problem.dirichlet_value(xd), dtype=float).copy(),
+                          "time-dependent Dirichlet data is not supported", False))
+        self.items = items
+        self.start = [get() for _, get, _, _ in items]
+
+    def __len__(self):
+        return len(self.items)
+
+    def changed(self):
+        """None, or one line naming the first datum whose value differs from the start (collective)."""
+        if not self.items:
+            return None
+        first = len(self.items)
+        for k, (_, get, _, _) in enumerate(self.items):
+            now = get()
+            if now.shape != self.start[k].shape or not np.array_equal(now, self.start[k]):
+                first = k
+                break
+        first = self.comm.allreduce(first, op=MPI.MIN)
+        if first == len(self.items):
+            return None
+        label, get, hint, show = self.items[first]
+        values = f" (from {_fmt(self.start[first])} to {_fmt(get())})" if show else ""
+        return f"{label} changed during the run{values}; {hint}"
+
+
+def _fmt(v):
+    v = np.asarray(v)
+    return f"{float(v):g}" if v.shape == () else "(" + ", ".join(f"{x:g}" for x in v.reshape(-1)) + ")"
