@@ -59,6 +59,11 @@ def main(argv=None):
         if command == "run" or command in problems.names(builtin=True):
             from sdm_dolfinx.cli import run
             return run.main(command, rest, comm)
+    except KeyboardInterrupt:           # Ctrl-C before the run's own handlers (imports, set-up)
+        if comm.rank == 0:
+            print(f"{PROG} {command}: interrupted before the run started (nothing written)", file=sys.stderr,
+                  flush=True)
+        return 130
     except Exception as e:
         return internal_error(f"{PROG} {command}", e, comm)
     if comm.rank == 0:

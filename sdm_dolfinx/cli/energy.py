@@ -78,6 +78,7 @@ def main(argv=None):
         eps = np.finfo(np.dtype(res["stored_dtype"])).eps
         print(f"{args.folder}: energy of {len(res['step'])} stored states -> {args.folder}/energy_recomputed.csv; "
               f"max relative difference to timeseries.csv: {res['max_rel_diff']:.3e} "
-              f"({res['max_roundoff_ratio'] / eps:.3g} eps of the round-off scale; {res['rows']} common steps; "
+              f"(= {res['max_roundoff_ratio'] / eps:.3g} eps of the round-off scale 1/2|U||A||U| + |U||L| + "
+              f"1/2|V||M||V|, entrywise absolute values; {res['rows']} common steps; "
               f"state.h5 stores {res['stored_dtype']}, eps = {eps:.1e})", flush=True)
     return 0

@@ -274,7 +274,7 @@ def execute(the_plan, args, argv, prog, comm):
     try:
         result = the_plan.run(comm, progress=progress, handle_signals=True,
                               extra_info={"command": " ".join([prog] + list(argv))})
-    except ProblemInputError as e:      # the problem refused its values, or a problem file's build failed
+    except (ProblemInputError, RunFolderError) as e:   # refused values, a problem file's bug, a folder in use
         return say_error(prog, e, comm, 2)
     except MeshError as e:              # raised on every rank, before anything is written
         return say_error(prog, e, comm, 2)

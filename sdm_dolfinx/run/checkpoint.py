@@ -1,5 +1,6 @@
-"""Checkpoints: the full state of a run (U, V, active set, step, time, parameters, mesh
-identity) in one ``checkpoint.npz``, written atomically (temporary file, then rename).
+"""Checkpoints: the full state of a run (U, V, active set, the step solver's history, step,
+time, parameters, mesh identity, and the state of the run's files) in one
+``checkpoint.npz``, written atomically (temporary file, then rename).
 
 Values are stored with the coordinates of their dofs (and the active constraints by their
 vertex coordinates), not in the global numbering: that numbering depends on the mesh
@@ -9,8 +10,8 @@ so any partition (and any number of ranks) reads the same state; the mesh finger
 the parameters are checked as well.
 """
 import json
-import os
-import re
+import zipfile
+import zlib
 from pathlib import Path
 
 from mpi4py import MPI
@@ -51,14 +52,17 @@ def _owned(space, vec):
     return space.tabulate_dof_coordinates()[:n], np.array(vec.array).reshape(n, bs)
 
 
-def save(folder, comm, fields, active_x, meta):
-    """Write ``folder/checkpoint.npz`` atomically (collective).
+def save(folder, comm, fields, active_x, meta, extra=None):
+    """Write ``folder/checkpoint.npz`` atomically (collective gathers, then rank 0 writes; no
+    barrier after it: an OSError on rank 0, a full disc, leaves the old checkpoint and is
+    for the caller to share, see :func:`sdm_dolfinx.run.outputs.agree`).
 
     Args:
         fields: ``{"U": (space, vec), "V": (space, vec)}``.
         active_x: (n, 3) coordinates of this rank's active constrained vertices.
+        extra: arrays stored as they are (rank 0's).
     """
-    data = {}
+    data = dict(extra or {})
     for name, (space, vec) in fields.items():
         x, v = _owned(space, vec)
         data[name + "_x"], data[name] = gather_rows(x, comm), gather_rows(v, comm)
@@ -68,7 +72,6 @@ def save(folder, comm, fields, active_x, meta):
             with open(tmp, "wb") as fh:         # a file object: savez would append .npz to a name
                 np.savez(fh, meta=json.dumps(meta), **data)
         atomic_write(Path(folder) / CHECKPOINT, write)
-    comm.Barrier()
 
 
 def _match(saved_x, x, scale):
@@ -103,17 +106,23 @@ def active_mask(data, cx):
 
 
 def load(folder, comm):
-    """(arrays, meta) of ``folder/checkpoint.npz``, on every rank."""
+    """(arrays, meta) of ``folder/checkpoint.npz``, on every rank.
+
+    Raises:
+        CheckpointError: missing, or damaged (truncated, bad CRC, not an .npz, no meta), in
+            one line; nothing is changed.
+    """
     path = Path(folder) / CHECKPOINT
     data, err = None, None
     if comm.rank == 0:
         try:
-            with np.load(path) as f:
+            with np.load(path, allow_pickle=False) as f:
                 data = ({k: f[k] for k in f.files if k != "meta"}, json.loads(str(f["meta"])))
         except FileNotFoundError:
             err = f"no checkpoint in {folder} (run with --checkpoint-every K, or interrupt with SIGINT/SIGTERM)"
-        except (OSError, ValueError, KeyError) as e:
-            err = f"cannot read {path}: {e}"
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error) as e:
+            why = " ".join(f"{type(e).__name__}: {e}".split())
+            err = f"cannot read {path}: it is damaged or not a checkpoint ({why})"
     err = comm.bcast(err, root=0)
     if err:
         raise CheckpointError(err)
@@ -131,46 +140,39 @@ def previous_run_id(folder, comm):
     return comm.bcast(rid, root=0)
 
 
-def _readable_h5(path):
+def readable_h5(path):
+    """True when every object of the HDF5 file ``path`` can be opened (a damaged header or
+    object raises)."""
     import h5py
     try:
         with h5py.File(path, "r") as h5:
-            h5.visit(lambda name: None)         # walks every object: a damaged header raises
+            h5.visititems(lambda name, obj: None)
         return True
-    except (OSError, RuntimeError, KeyError, ValueError):
+    except Exception:               # noqa: BLE001  (h5py raises OSError, KeyError, RuntimeError, ...)
         return False
 
 
-def check_outputs(folder, step, comm):
+def check_series(folder, step, comm):
     """Before a restart touches anything: the time series must reach the checkpoint's step
-    (else the checkpoint is not this folder's run), and HDF5 files that a kill during a
-    write left unreadable are moved aside (``solution.damaged.h5`` ...) so that the run
-    continues them in new files. Returns ``{"solution": ok, "state": ok, "moved": [names]}``
-    on every rank; raises CheckpointError (nothing changed) when the series is too short."""
-    res, err = None, None
+    (else the checkpoint is not this folder's run). Raises CheckpointError (nothing changed)."""
+    err = None
     if comm.rank == 0:
         folder = Path(folder)
         csv = folder / "timeseries.csv"
-        rows = _whole_rows(csv.read_text().splitlines()) if csv.exists() else []
-        last = max((int(ln.split(",", 1)[0]) for ln in rows[1:]), default=-1)
-        if last < step:
+        try:
+            rows = _whole_rows(csv.read_text().splitlines()) if csv.exists() else []
+            last = max((int(ln.split(",", 1)[0]) for ln in rows[1:]), default=-1)
+        except (OSError, ValueError, UnicodeDecodeError) as e:
+            rows, last = [], -1
+            err = f"{csv} cannot be read ({e}): the run cannot continue"
+        if err is None and not csv.exists():
+            err = f"{csv} is missing: the run cannot continue without its time series"
+        elif err is None and last < step:
             err = (f"{csv} ends at step {last}, before the checkpoint's step {step}: the checkpoint is "
                    f"not from the run in {folder}")
-        else:
-            res = {"moved": []}
-            for stem in ("solution", "state"):
-                h5 = folder / f"{stem}.h5"
-                res[stem] = h5.exists() and _readable_h5(h5)
-                if not res[stem]:               # its files (if any) go aside; new ones are started
-                    for src in (h5, folder / f"{stem}.xdmf"):
-                        if src.exists():
-                            dst = src.with_name(f"{stem}.damaged{src.suffix}")
-                            os.replace(src, dst)
-                            res["moved"].append(dst.name)
     err = comm.bcast(err, root=0)
     if err:
         raise CheckpointError(err)
-    return comm.bcast(res, root=0)
 
 
 def _whole_rows(lines):
@@ -182,40 +184,13 @@ def _whole_rows(lines):
     return lines[:1] + [ln for ln in lines[1:] if ln and len(ln.split(",")) == width]
 
 
-def truncate_csv(path, last_step, comm):
-    """Keep the header and the rows of steps <= last_step (rank 0); returns those rows."""
-    rows = None
-    if comm.rank == 0:
+def truncate_csv(path, last_step, comm=None):
+    """Keep the header and the rows of steps <= last_step, atomically; returns those lines.
+    With ``comm``: rank 0 does it and every rank gets the lines; without: the calling
+    process does it (an OSError, a full disc, is then the caller's to share)."""
+    if comm is None:
         lines = _whole_rows(Path(path).read_text().splitlines())
         keep = lines[:1] + [ln for ln in lines[1:] if int(ln.split(",", 1)[0]) <= last_step]
         atomic_write_text(path, "\n".join(keep) + "\n")
-        rows = keep
-    return comm.bcast(rows, root=0)
-
-
-_GRID = re.compile(r'\n\s*<Grid Name="[^"]*" GridType="Uniform">\s*<xi:include[^>]*/>\s*'
-                   r'<Time Value="([^"]+)" />.*?</Grid>', re.S)
-_ITEM = re.compile(r'Format="HDF">[^:<]+:([^<]+)</DataItem>')
-
-
-def truncate_xdmf(xdmf, t_last, comm):
-    """Drop the time steps after t_last from an XDMF file and its HDF5 datasets (rank 0),
-    so that appending continues it without duplicates."""
-    if comm.rank == 0 and Path(xdmf).exists():
-        text = Path(xdmf).read_text()
-        drop = []
-
-        def keep(m):
-            if float(m.group(1)) > t_last * (1 + 1e-12) + 1e-300:
-                drop.extend(_ITEM.findall(m.group(0)))
-                return ""
-            return m.group(0)
-        text = _GRID.sub(keep, text)
-        if drop:
-            import h5py
-            with h5py.File(Path(xdmf).with_suffix(".h5"), "a") as h5:
-                for name in drop:
-                    if name in h5:
-                        del h5[name]
-        atomic_write_text(xdmf, text)
-    comm.Barrier()
+        return keep
+    return comm.bcast(truncate_csv(path, last_step) if comm.rank == 0 else None, root=0)

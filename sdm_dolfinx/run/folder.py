@@ -1,17 +1,36 @@
-"""The run folder's guard: never overwrite a run by accident, refuse an unwritable folder,
-and read back what a run recorded (``run.json``)."""
+"""The run folder's guard: never overwrite a run by accident, refuse an unwritable folder or
+one another process is running in (:class:`FolderLock`), and read back what a run recorded
+(``run.json``)."""
+import errno
+import fcntl
 import json
 import os
+import socket
 import tempfile
+import time
 from pathlib import Path
 
 from mpi4py import MPI
 
 from sdm_dolfinx.mpiutil import on_rank0
+from sdm_dolfinx.run.checkpoint import CheckpointError
+
+#: the lock file of a run folder (rank 0 holds an advisory lock on it for the run's life)
+LOCK = ".lock"
+#: bytes the lock file keeps in reserve: released on a full disc so that run.json can still
+#: say "failed"
+RESERVE = 64 * 1024
 
 
 class RunFolderError(RuntimeError):
     """The output folder cannot take this run (one line, nothing written)."""
+
+
+class FolderInUseError(RunFolderError, CheckpointError):
+    """Another process is running in the folder (one line, nothing written).
+
+    Also a CheckpointError only so that the command line's existing one-line mapping of
+    that error (exit status 2) applies to it."""
 
 
 def read_info(folder, comm=MPI.COMM_WORLD):
@@ -40,6 +59,10 @@ def check_out(out, overwrite, comm=MPI.COMM_WORLD):
 
 
 def _check_out(out, overwrite):
+    holder = lock_holder(out)
+    if holder is not None:
+        raise FolderInUseError(f"{out} is in use by another run ({holder}); wait for it to end or choose "
+                               f"another --out")
     run = out / "run.json"
     if run.exists() and not overwrite:
         try:
@@ -72,3 +95,103 @@ def _check_out(out, overwrite):
     except OSError as e:
         raise RunFolderError(f"cannot write to {out} (creating a file in {probe_dir} failed: "
                              f"{e.strerror or e})") from None
+
+
+def lock_holder(folder):
+    """Who holds ``folder``'s lock ("pid N on HOST since ..."), or None when nobody does (no lock
+    file, or a stale one: the lock dies with its process). Not collective."""
+    path = Path(folder) / LOCK
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return _describe_holder(fd)
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        return None
+    finally:
+        os.close(fd)
+
+
+def _describe_holder(fd):
+    try:
+        line = os.pread(fd, 200, 0).split(b"\n", 1)[0].decode("utf-8", "replace").strip()
+    except OSError:
+        line = ""
+    return line or "a process that did not say who it is"
+
+
+class FolderLock:
+    """An advisory lock (``flock``) on ``folder/.lock``, held by rank 0 for a run's life
+    (collective). A second run, or a restart, in the same folder is refused; a lock left by
+    a dead process is no lock (flock dies with its process). The file also keeps
+    :data:`RESERVE` bytes, released by :meth:`free_reserve` when the disc is full.
+
+    Raises:
+        FolderInUseError: another live process holds it (after ``wait`` seconds).
+        OSError: the folder or the lock file cannot be created (on every rank: as
+            RunFolderError).
+    """
+
+    def __init__(self, folder, comm=MPI.COMM_WORLD, wait=1.0):
+        self.folder, self.comm, self.fd = Path(folder), comm, None
+        err = None
+        if comm.rank == 0:
+            try:
+                self._acquire(wait)
+            except FolderInUseError as e:
+                err = ("busy", str(e))
+            except OSError as e:
+                err = ("os", f"cannot create the lock file {self.folder / LOCK}: {e.strerror or e}")
+        err = comm.bcast(err, root=0)
+        if err is not None:
+            raise (FolderInUseError if err[0] == "busy" else RunFolderError)(err[1])
+
+    def _acquire(self, wait):
+        self.folder.mkdir(parents=True, exist_ok=True)
+        fd = os.open(self.folder / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+        deadline = time.monotonic() + wait
+        while True:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except BlockingIOError:
+                if time.monotonic() > deadline:      # (a brief wait: check_out's probe holds it a moment)
+                    holder = _describe_holder(fd)
+                    os.close(fd)
+                    raise FolderInUseError(f"{self.folder} is in use by another run ({holder}); wait for it "
+                                           f"to end or choose another --out") from None
+                time.sleep(0.05)
+        self.fd = fd
+        head = (f"pid {os.getpid()} on {socket.gethostname()} since "
+                f"{time.strftime('%Y-%m-%d %H:%M:%S')}\n").encode()
+        self._head = len(head)
+        try:
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, head, 0)
+            os.posix_fallocate(fd, 0, RESERVE)
+        except OSError as e:
+            if e.errno not in (errno.ENOSPC, errno.EDQUOT, errno.EOPNOTSUPP, errno.EINVAL):
+                raise
+            # no room for the reserve: the run finds out at its first write
+
+    def free_reserve(self):
+        """Give the reserved bytes back to the file system (rank 0; not collective)."""
+        if self.fd is not None:
+            try:
+                os.ftruncate(self.fd, self._head)
+            except OSError:
+                pass
+
+    def release(self):
+        """Unlock (the file stays: a stale lock file is harmless). Not collective."""
+        if self.fd is not None:
+            self.free_reserve()
+            try:
+                fcntl.flock(self.fd, fcntl.LOCK_UN)
+            finally:
+                os.close(self.fd)
+                self.fd = None

@@ -1,17 +1,30 @@
-"""Observers: probes, the CSV time series, run.json and XDMF fields.
+"""Observers: probes, the CSV time series, state.h5 (and the XDMF fields: :mod:`.xdmf_file`).
 
-Only rank 0 writes CSV/JSON; XDMF is written collectively. Scalars are reduced over ranks.
+Scalars are reduced over ranks. Only rank 0 writes files, after a gather: CSV rows with one
+system call each, and both HDF5 files through :class:`~sdm_dolfinx.run.journal.JournaledFile`
+(crash-safe: a kill or a full disc never damages what an earlier step or checkpoint wrote).
+The file writers raise OSError (:class:`~sdm_dolfinx.run.journal.FileVanished` for a file
+deleted or replaced during the run) on rank 0 only; :class:`~sdm_dolfinx.run.outputs.RunFiles`
+makes every rank agree.
+
+Every file is independent of the partition of the process that wrote it: the XDMF mesh and
+fields are in the mesh's input node order, and the rows of state.h5 in the order of the dof
+coordinates stored in it (a continuing process maps its own order onto them).
 """
+import errno
+import os
 from pathlib import Path
 
 from mpi4py import MPI
-from petsc4py import PETSc
 
 import numpy as np
 from dolfinx import fem
 
 from sdm_dolfinx import compat
 from sdm_dolfinx.mpiutil import gather_blocks, gather_vec, write_json  # noqa: F401  (write_json: re-exported)
+from sdm_dolfinx.run.journal import FileVanished
+from sdm_dolfinx.run.xdmf_file import XDMFWriter, match_rows  # noqa: F401  (XDMFWriter: re-exported)
+
 
 class PointProbe:
     """Value of a W-function at a point, on every rank (the lowest rank owning it evaluates)."""
@@ -67,27 +80,49 @@ class ConstraintProbe:
 
 
 class CSVWriter:
-    """timeseries.csv, one complete line per step, flushed (a killed run keeps whole rows)."""
+    """timeseries.csv, one whole line per step written with one system call (rank 0).
+
+    A line that cannot be written whole (no space left) is cut off again, so the file never
+    ends with a partial row; a file deleted or replaced during the run is noticed at the next
+    row (:class:`FileVanished`)."""
 
     def __init__(self, path, columns, comm, append=False):
-        self.comm, self.columns = comm, tuple(columns)
-        self.fh = None
+        self.comm, self.columns, self.path = comm, tuple(columns), Path(path)
+        self.fd = None
         if comm.rank == 0:
-            self.fh = open(path, "a" if append else "w", buffering=1)
+            flags = os.O_WRONLY | os.O_CREAT | (os.O_APPEND if append else os.O_TRUNC)
+            self.fd = os.open(self.path, flags, 0o644)
+            self.inode, self.size = os.fstat(self.fd).st_ino, os.fstat(self.fd).st_size
             if not append:
-                self.fh.write(",".join(self.columns) + "\n")
+                self._append(",".join(self.columns) + "\n")
+
+    def _append(self, line):
+        data = line.encode()
+        try:
+            st = os.stat(self.path)
+        except FileNotFoundError:
+            raise FileVanished(self.path) from None
+        if st.st_ino != self.inode:
+            raise FileVanished(self.path)
+        try:
+            n = os.pwrite(self.fd, data, self.size)
+            if n != len(data):
+                raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(self.path))
+        except OSError:
+            os.ftruncate(self.fd, self.size)        # no partial row
+            raise
+        self.size += n
 
     def write(self, row):
-        """Append one row (a dict column -> value) and flush it (rank 0 only)."""
-        if self.fh is not None:
-            self.fh.write(",".join(_fmt(row[c]) for c in self.columns) + "\n")
-            self.fh.flush()
+        """Append one row (a dict column -> value) (rank 0 only)."""
+        if self.fd is not None:
+            self._append(",".join(_fmt(row[c]) for c in self.columns) + "\n")
 
     def close(self):
         """Close the file (rank 0 only)."""
-        if self.fh is not None:
-            self.fh.close()
-            self.fh = None
+        if self.fd is not None:
+            os.close(self.fd)
+            self.fd = None
 
 
 def _fmt(v):
@@ -99,100 +134,68 @@ def _fmt(v):
 class StateWriter:
     """state.h5: the native dof vectors of U and V every K steps, for post-processing.
 
-    XDMF shows ParaView vertex interpolants; this file keeps the exact coefficients, in the
-    run's global dof numbering, together with each dof's coordinates (so that a reader on
-    any number of ranks can match them) and the mesh fingerprint. Written by rank 0 with
-    (serial) h5py after a gather; datasets ``U``, ``V`` (one row per write), ``t``, ``step``;
-    groups ``W`` and ``V_space`` hold ``dof_coordinates`` and ``block_size``.
+    XDMF shows ParaView vertex interpolants; this file keeps the exact coefficients together
+    with each dof block's coordinates (so that a reader on any number of ranks can match
+    them) and the mesh fingerprint. Rows are in the dof order of the process that created the
+    file (as its ``dof_coordinates`` say); a process continuing the file (a restart, whose
+    partition may differ) maps its own order onto it by the coordinates. Written by rank 0
+    with (serial) h5py after a gather; datasets ``U``, ``V`` (one row per write), ``t``,
+    ``step``; groups ``W`` and ``V_space`` hold ``dof_coordinates`` and ``block_size``.
+
+    Args:
+        journal: the file's :class:`JournaledFile` (rank 0; None elsewhere).
+        new: create the file (else continue it: it holds the rows up to the restart).
     """
 
-    def __init__(self, path, discretisation, integrator, fingerprint, append=False, last_step=None):
-        self.comm, self.path = discretisation.comm, Path(path)
+    def __init__(self, path, discretisation, integrator, fingerprint, journal=None, new=True):
+        self.comm, self.path, self.journal = discretisation.comm, Path(path), journal
         vspace = discretisation.H if integrator.block else discretisation.W
-        coords = {name: gather_blocks(sp, sp.tabulate_dof_coordinates(), self.comm)
-                  for name, sp in (("W", discretisation.W), ("V_space", vspace))}
-        bs = {"W": discretisation.W.dofmap.index_map_bs, "V_space": vspace.dofmap.index_map_bs}
-        if self.comm.rank == 0:
-            import h5py
-            if append and self.path.exists():
-                with h5py.File(self.path, "a") as h5:
-                    keep = int(np.searchsorted(h5["step"][:], last_step, side="right"))
-                    for name in ("U", "V", "t", "step"):
-                        h5[name].resize(keep, axis=0)
-            else:
-                with h5py.File(self.path, "w") as h5:
-                    for name in ("W", "V_space"):
-                        g = h5.create_group(name)
-                        g.create_dataset("dof_coordinates", data=coords[name])
-                        g.attrs["block_size"] = bs[name]
-                    nu = coords["W"].shape[0] * bs["W"]
-                    nv = coords["V_space"].shape[0] * bs["V_space"]
-                    # float64: h5py's default float32 would lose half the digits
-                    h5.create_dataset("U", shape=(0, nu), maxshape=(None, nu), chunks=(1, nu), dtype="f8")
-                    h5.create_dataset("V", shape=(0, nv), maxshape=(None, nv), chunks=(1, nv), dtype="f8")
-                    h5.create_dataset("t", shape=(0,), maxshape=(None,), dtype="f8")
-                    h5.create_dataset("step", shape=(0,), maxshape=(None,), dtype="i8")
-                    h5.attrs["V_is"] = "V in H^h (block system)" if integrator.block else "Vbar in W^h"
-                    for k, v in fingerprint.items():
-                        h5.attrs["mesh_" + k] = v
-        self.comm.Barrier()
+        spaces = (("W", discretisation.W), ("V_space", vspace))
+        coords = {name: gather_blocks(sp, sp.tabulate_dof_coordinates(), self.comm) for name, sp in spaces}
+        bs = {name: sp.dofmap.index_map_bs for name, sp in spaces}
+        self.bs = bs
+        self.maps = {"W": None, "V_space": None}
+        if self.comm.rank != 0:
+            return
+        if not new:
+            with journal.h5("r") as h5:
+                for name in ("W", "V_space"):
+                    if int(h5[name].attrs["block_size"]) != bs[name]:
+                        raise ValueError(f"{self.path}: block size {int(h5[name].attrs['block_size'])} of "
+                                         f"{name}, this run has {bs[name]}")
+                    self.maps[name] = match_rows(h5[name]["dof_coordinates"][:], coords[name],
+                                                  f"{self.path} ({name})")
+            return
+        with journal.h5("w") as h5:
+            for name in ("W", "V_space"):
+                g = h5.create_group(name)
+                g.create_dataset("dof_coordinates", data=coords[name])
+                g.attrs["block_size"] = bs[name]
+            nu = coords["W"].shape[0] * bs["W"]
+            nv = coords["V_space"].shape[0] * bs["V_space"]
+            # float64: h5py's default float32 would lose half the digits
+            h5.create_dataset("U", shape=(0, nu), maxshape=(None, nu), chunks=(1, max(nu, 1)), dtype="f8")
+            h5.create_dataset("V", shape=(0, nv), maxshape=(None, nv), chunks=(1, max(nv, 1)), dtype="f8")
+            h5.create_dataset("t", shape=(0,), maxshape=(None,), dtype="f8")
+            h5.create_dataset("step", shape=(0,), maxshape=(None,), dtype="i8")
+            h5.attrs["V_is"] = "V in H^h (block system)" if integrator.block else "Vbar in W^h"
+            for k, v in fingerprint.items():
+                h5.attrs["mesh_" + k] = v
+
+    def _in_file_order(self, a, name):
+        idx = self.maps[name]
+        if idx is None:
+            return a
+        bs = self.bs[name]
+        return a.reshape(-1, bs)[idx].reshape(-1)
 
     def write(self, U, V, step, t):
         """Gather U and V to rank 0 and append them, with the step and time, to state.h5."""
         u, v = gather_vec(U, self.comm), gather_vec(V, self.comm)
         if self.comm.rank == 0:
-            import h5py
-            with h5py.File(self.path, "a") as h5:
+            u, v = self._in_file_order(u, "W"), self._in_file_order(v, "V_space")
+            with self.journal.h5() as h5:
                 n = h5["t"].shape[0]
                 for name, val in (("U", u), ("V", v), ("t", t), ("step", step)):
                     h5[name].resize(n + 1, axis=0)
                     h5[name][n] = val
-
-
-class XDMFWriter:
-    """solution.xdmf: displacement, velocity, contact stress and active set at vertices.
-
-    Fields are written as explicit P1 interpolants, which every dolfinx version and
-    ParaView's Xdmf3 reader accept.
-    """
-
-    def __init__(self, path, discretisation, integrator, append=False):
-        self.discretisation, self.integ = discretisation, integrator
-        msh = discretisation.problem.mesh
-        self.path, self.comm = path, msh.comm
-        if not append:
-            with compat.xdmf_file(msh.comm, path, "w") as f:
-                f.write_mesh(msh)
-        self.uW = fem.Function(discretisation.W)
-        self.vsrc = fem.Function(discretisation.H if integrator.block else discretisation.W)
-        self.u1 = fem.Function(discretisation.P1, name="displacement")
-        self.v1 = fem.Function(discretisation.P1, name="velocity")
-        self.s1 = fem.Function(discretisation.Q1, name="contact_stress")
-        self.a1 = fem.Function(discretisation.Q1, name="active")
-
-    def write(self, U, V, lam, active, t):
-        """Write the displacement, velocity, contact stress and active set at time t (collective).
-
-        The fields are interpolated into P1 (vertex values) so that dolfinx 0.5 and 0.10 write the same file;
-        the contact stress is each constrained vertex's multiplier divided by its lumped measure.
-        """
-        d = self.discretisation
-        self.uW.x.array[:len(U.array)] = U.array
-        self.uW.x.scatter_forward()
-        self.u1.interpolate(self.uW)
-        self.vsrc.x.array[:len(V.array)] = V.array
-        self.vsrc.x.scatter_forward()
-        self.v1.interpolate(self.vsrc)
-        for f, vals in ((self.s1, lam / np.where(d.cmeasure > 0, d.cmeasure, 1.0)),
-                        (self.a1, active.astype(float))):
-            f.x.array[:] = 0.0
-            f.x.array[d.q1_of_c] = vals
-            vec = compat.petsc_vec(f)
-            vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-            vec.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
-        # opened and closed at every write: HDF5 keeps an open file's metadata in memory, so a
-        # run killed with SIGKILL would otherwise leave solution.h5 unreadable (and with it
-        # every earlier step); closed, only a kill during this write can damage it
-        with compat.xdmf_file(self.comm, self.path, "a") as file:
-            for f in (self.u1, self.v1, self.s1, self.a1):
-                file.write_function(f, float(t))

@@ -7,6 +7,7 @@ step), :class:`~sdm_dolfinx.run.result.TimeSeries` (one row per step),
 """
 import time
 import uuid
+from pathlib import Path
 
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -16,11 +17,14 @@ import numpy as np
 from sdm_dolfinx import compat
 from sdm_dolfinx.method.discretisation import Discretisation
 from sdm_dolfinx.method.integrator import Integrator, StepError
+from sdm_dolfinx.mpiutil import atomic_write_text, json_text
 from sdm_dolfinx.run import checkpoint, restart as _restart
+from sdm_dolfinx.run.folder import FolderLock
 from sdm_dolfinx.run.observers import ConstraintProbe, PointProbe
-from sdm_dolfinx.run.outputs import RunFiles
+from sdm_dolfinx.run.outputs import RunFileError, RunFiles
 from sdm_dolfinx.run.result import Result, TimeSeries, num_steps
 from sdm_dolfinx.run.signals import Interrupted, StopFlag
+from sdm_dolfinx.run.solver_state import SolverHistory
 
 
 class SolverSetupError(RuntimeError):
@@ -46,7 +50,9 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
         checkpoint_every: write ``out/checkpoint.npz`` every K steps (and at the end).
         restart: continue the run in ``out`` from its checkpoint (same parameters and ranks).
         handle_signals: on SIGINT/SIGTERM stop after the current step, checkpoint, raise
-            :class:`Interrupted`.
+            :class:`Interrupted` (the handlers are installed first thing: a signal during the
+            set-up stops the run before anything is written, one after the files are created
+            leaves a checkpoint).
         on_step: ``f(step, row)`` called after every step with the time-series row (plus
             ``linear_its_total``, the cumulative linear iterations); returning True requests
             a stop (as a signal would).
@@ -57,18 +63,31 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
         :class:`Result`.
 
     Raises:
-        StepError: a step failed (the outputs up to the last good step stay readable).
+        StepError: a step failed (the outputs up to the last good step stay readable);
+            :class:`~sdm_dolfinx.run.outputs.RunFileError` (a StepError) when a file could not
+            be written (no space left, a file deleted or replaced during the run).
         Interrupted: a stop was requested; a checkpoint was written first.
         checkpoint.CheckpointError: ``restart`` without a matching checkpoint.
+        folder.FolderInUseError: another process runs in ``out`` (nothing written).
     """
     wall0 = time.perf_counter()
     run_options = {"pair": pair if isinstance(pair, str) else pair.name, "scheme": scheme, "dt": dt, "T": T,
                    "mass": mass, "vi_solver": vi_solver, "linear": linear, "write_every": write_every,
                    "checkpoint_every": checkpoint_every}
-    loop = _Loop(problem, pair, scheme, dt, T, mass, vi_solver, linear, petsc_options, wall0)
-    loop.open(out, restart, write_every, {"run_options": run_options, **(extra_info or {})})
-    loop.run(progress, on_step, checkpoint_every, handle_signals, constraint_tol)
-    return loop.finish()
+    stop = StopFlag(handle_signals)      # before anything is built or written
+    loop = None
+    try:
+        loop = _Loop(problem, pair, scheme, dt, T, mass, vi_solver, linear, petsc_options, wall0)
+        signum = stop.agreed(loop.comm)
+        if signum:
+            raise Interrupted("interrupted during the set-up, before anything was written", signum)
+        loop.open(out, restart, write_every, {"run_options": run_options, **(extra_info or {})})
+        loop.run(stop, progress, on_step, checkpoint_every, constraint_tol)
+        return loop.finish()
+    finally:
+        if loop is not None:
+            loop.close()
+        stop.restore()
 
 
 class _Loop:
@@ -95,9 +114,12 @@ class _Loop:
                          "dt": dt, "vi_solver": vi_solver, "linear": linear, "ranks": self.comm.size,
                          "mesh": self.fingerprint}
         self.fields_of = {"U": (d.W, self.U), "V": (d.H if self.integ.block else d.W, self.V)}
+        self.history = SolverHistory(self.integ)
+        self.files = self.lock = None
 
     def open(self, out, restart, write_every, extra_info):
-        """run.json's first version, the restart (if any) and the files (if ``out``)."""
+        """The folder's lock, run.json's first version, the restart (if any) and the files
+        (if ``out``)."""
         d, integ = self.discretisation, self.integ
         self.info = {**self.identity, "T": self.nsteps * self.dt, "steps": self.nsteps, **d.dims(),
                      "versions": compat.versions(), "displacement_reported": "U^{n+1} (end of step)",
@@ -107,17 +129,22 @@ class _Loop:
                      "solver_options_prefix": getattr(integ.solver, "prefix", None),
                      "status": "running", **extra_info}
         self.out, self.restarted, self.first = out, bool(restart), 0
+        if out is not None:
+            self.lock = FolderLock(out, self.comm)      # a second process in this folder stops here
         if restart:
             self.first, self.run_id, outputs = _restart.resume(out, self.identity, self.fields_of, integ,
-                                                               self.nsteps, self.comm)
+                                                               self.nsteps, self.comm, self.history)
             self.info["restarted_from_step"] = self.first
         else:
             self.run_id = self.comm.bcast(uuid.uuid4().hex if self.comm.rank == 0 else None, root=0)
         self.info["run_id"] = self.run_id
-        self.files = None
         if out is not None:
-            self.files = RunFiles(out, integ, self.series, self.info, self.fingerprint,
-                                  (self.first, outputs) if restart else None, write_every, self.dt)
+            try:
+                self.files = RunFiles(out, integ, self.series, self.info, self.fingerprint,
+                                      (self.first, outputs) if restart else None, write_every, self.dt)
+            except RunFileError as e:
+                self._say_failed(e)
+                raise
 
     def record(self, n, its, n_active):
         row = self.series.record(n, n * self.dt, self.U, self.V, self.lam, its, n_active)
@@ -125,9 +152,9 @@ class _Loop:
             self.files.row(row)
         return row
 
-    def run(self, progress, on_step, checkpoint_every, handle_signals, constraint_tol):
+    def run(self, stop, progress, on_step, checkpoint_every, constraint_tol):
         """Steps first..nsteps; a failed step leaves the files at the last good step."""
-        files, stop, n = self.files, StopFlag(handle_signals), self.first
+        files, n = self.files, self.first
         scale = max(self.comm.allreduce(float(np.max(np.abs(self.discretisation.lb), initial=0.0)), op=MPI.MAX), 1.0)
         saved = None
         try:
@@ -136,7 +163,10 @@ class _Loop:
                 if files is not None:
                     files.fields(0, self.U, self.V, self.lam)
             elif files is not None and files.state_missing:
-                files.state.write(self.U, self.V, self.first, self.first * self.dt)  # a new state.h5 starts here
+                files.state_write(self.U, self.V, self.first)  # a new state.h5 starts here
+            signum = stop.agreed(self.comm)
+            if signum and self.first < self.nsteps:     # a signal during the set-up: the files exist now
+                self.interrupted(self.first, signum, checkpointed=False)
             last_print = time.perf_counter()
             for n in range(self.first, self.nsteps):
                 # the state before each step, so that a failed run's files end with its last good step
@@ -157,10 +187,6 @@ class _Loop:
         except StepError as e:
             self.failed(n, e, saved)
             raise
-        finally:
-            stop.restore()
-            if files is not None:
-                files.close()
 
     def step(self, n, tol):
         """Step n -> n + 1: solve, check the constraint, record (and write the fields if due)."""
@@ -176,7 +202,8 @@ class _Loop:
         return row
 
     def checkpoint(self, n):
-        _restart.save(self.out, self.identity, n, self.dt, self.run_id, self.fields_of, self.integ, self.comm)
+        _restart.save(self.out, self.identity, n, self.dt, self.run_id, self.fields_of, self.integ, self.comm,
+                      self.files, self.history)
 
     def interrupted(self, n, signum, checkpointed):
         msg = f"interrupted after step {n} (t = {n * self.dt:.6g})"
@@ -184,28 +211,65 @@ class _Loop:
         if self.files is not None:
             if not checkpointed:
                 self.checkpoint(n)
-            msg += f"; checkpoint written, continue with --restart {self.out}"
+            msg += f"; checkpoint written, continue with: python -m sdm_dolfinx run --restart {self.out}"
             self.files.update()
         raise Interrupted(msg, signum)
 
     def failed(self, n, error, saved):
-        """Step n was the last good one: run.json says so, and its fields are written unless they are."""
+        """Step n was the last good one: run.json says so, and its fields are written unless they are.
+
+        After a file error (:class:`RunFileError`) the last good step is the last row in the
+        time series, and nothing more is written but run.json (for which a full disc gets
+        the lock's reserve back)."""
         self.info.update(status="failed", error=str(error), wall_time=time.perf_counter() - self.wall0)
         if self.files is None:
             return
-        if saved is not None and n > self.first and n % self.files.write_every:
-            self.U.array[:], self.V.array[:] = saved[0], saved[1]
-            self.files.fields(n, self.U, self.V, saved[2])
-        self.files.update(last_good_step=n)
+        if isinstance(error, RunFileError):
+            self._say_failed(error, last_good_step=self.files.last_row)
+            return
+        try:
+            if saved is not None and n > self.first and n % self.files.write_every:
+                self.U.array[:], self.V.array[:] = saved[0], saved[1]
+                self.files.fields(n, self.U, self.V, saved[2])
+            self.files.update(last_good_step=n)
+        except RunFileError as e:           # the step's error is the one to report
+            self._say_failed(e, last_good_step=self.files.last_row, error=str(error))
+
+    def _say_failed(self, error, **entries):
+        """run.json says "failed" with ``error`` (best effort: the error is what matters)."""
+        if getattr(error, "no_space", False) and self.lock is not None:
+            self.lock.free_reserve()
+        self.info.update(status="failed", error=str(error), wall_time=time.perf_counter() - self.wall0)
+        self.info.update(entries)
+        if self.comm.rank == 0:
+            try:
+                atomic_write_text(Path(self.out) / "run.json", json_text(self.info))
+            except OSError:
+                pass
+        self.comm.Barrier()
+
+    def close(self):
+        """Close the files and unlock the folder (also after an error)."""
+        if self.files is not None:
+            self.files.close()
+        if self.lock is not None:
+            self.lock.release()
+            self.lock = None
 
     def finish(self):
         gi, ge = self.gap_imposed[self.first:], self.gap_end[self.first:]
         self.info.update(status="finished", wall_time=time.perf_counter() - self.wall0, setup_time=self.setup_time,
                          newton_its_total=int(self.series.data["newton_its"].sum()),
                          linear_its_total=int(self.integ.linear_its),
-                         min_gap_imposed=float(gi.min(initial=np.inf)), min_gap_end=float(ge.min(initial=np.inf)))
+                         min_gap_imposed=float(gi.min(initial=np.inf)), min_gap_end=float(ge.min(initial=np.inf)),
+                         **self.series.summary(self.first))
         if self.files is not None:
-            self.files.update()
+            try:
+                self.files.update()
+            except RunFileError as e:
+                self._say_failed(e)
+                raise
+            self.files.tidy()
         self.integ.destroy()
         return Result(self.series.data, self.info, self.gap_imposed, self.gap_end, self.U, self.V, self.discretisation)
 

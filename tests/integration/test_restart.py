@@ -1,4 +1,7 @@
-"""Checkpoints and restarts: interrupted (SIGINT, SIGTERM, SIGKILL, an observer) and continued runs reproduce the uninterrupted ones; damaged files are set aside."""
+"""Checkpoints and restarts: interrupted (SIGINT, SIGTERM, SIGKILL, an observer) and continued runs reproduce the uninterrupted ones; damaged files are set aside.
+
+More faults (kills at random moments, a full disc, a second process, deleted files, 2-rank
+restarts) are in test_faults_*.py."""
 import json
 import signal
 import subprocess
@@ -16,10 +19,12 @@ from sdm_dolfinx.run import CheckpointError
 COMM = MPI.COMM_WORLD
 
 
-# A restarted run repeats the same operations: serially it is bit-identical. On 2 ranks the
-# parallel factorisation (MUMPS) is not bit-reproducible from run to run (measured up to
-# 1.6e-11 relative on lambda_probe between identical runs), so the check allows 1e-9 there.
-RTOL = 1e-12 if COMM.size == 1 else 1e-9
+# A restarted run repeats the same operations (U, V, the active set and the step solver's
+# cached Schur columns are restored): serially it is bit-identical, in contact too. On 2
+# ranks the restarted process partitions the mesh anew and the parallel factorisation (MUMPS)
+# is not bit-reproducible from run to run (measured up to 1.6e-11 relative on lambda_probe
+# between identical runs), so the check allows 1e-9 there.
+RTOL = 0.0 if COMM.size == 1 else 1e-9
 
 
 def read_csv(path):
@@ -71,6 +76,25 @@ def test_restart_continues_the_membrane_exactly(pair, mass, mpi_tmp_path):
         assert times[0] == times[1]
 
 
+def test_restart_during_contact_is_bit_identical(mpi_tmp_path):
+    """Item 7: stopped at step 270 with 223 constraints active (the Newton systems solved by
+    Krylov), the active set then shrinks below the Schur strategy's threshold at step 275 and
+    the cached columns K^-1 e_i are used. Without the replayed column history the energy
+    differed by 3.9e-13, the kinetic energy by 1.1e-12 and u_probe by 8.8e-13 (relative to
+    their largest values); now serially every file is bit for bit the uninterrupted run's."""
+    kw = dict(dt=1e-3, T=0.3, write_every=10)
+    make = lambda: membrane.problem(N=24)                                 # noqa: E731
+    simulate(make(), out=mpi_tmp_path / "ref", **kw)
+    r = _interrupted_then_restarted(make, mpi_tmp_path / "cut", 270, **kw)
+    assert r.timeseries["n_active"][270] > 200 and 0 < r.timeseries["n_active"][275] < 100
+    if COMM.rank == 0 and COMM.size == 1:
+        from test_faults_common import assert_same_run
+        assert_same_run(mpi_tmp_path / "ref", mpi_tmp_path / "cut")
+    elif COMM.rank == 0:        # 2 ranks: round-off (the velocity's Ker(M) part drifts, docs/outputs.md)
+        a, b = read_csv(mpi_tmp_path / "ref" / "timeseries.csv"), read_csv(mpi_tmp_path / "cut" / "timeseries.csv")
+        assert a.shape == b.shape and np.allclose(a, b, rtol=RTOL, atol=RTOL * np.abs(a).max(axis=0))
+
+
 def test_restart_refuses_a_different_run(mpi_tmp_path):
     kw = dict(pair="P1+/P0", dt=2e-3, T=0.1)
     with pytest.raises(Exception):
@@ -103,8 +127,8 @@ def test_sigterm_stops_cleanly_and_restart_completes(tmp_path):
                        text=True, timeout=600)
     assert r.returncode == 0, r.stderr
     assert cli.main(args + ["--out", str(tmp_path / "ref"), "--quiet"]) == 0
-    a, b = read_csv(tmp_path / "ref" / "timeseries.csv"), read_csv(tmp_path / "cut" / "timeseries.csv")
-    assert a.shape == b.shape and np.allclose(a, b, rtol=RTOL, atol=RTOL * np.abs(a).max(axis=0))
+    from test_faults_common import assert_same_run
+    assert_same_run(tmp_path / "ref", tmp_path / "cut")      # bit for bit, contact included
 
 
 def test_killed_run_keeps_whole_rows_and_restarts(mpi_tmp_path):
@@ -122,7 +146,7 @@ def test_killed_run_keeps_whole_rows_and_restarts(mpi_tmp_path):
         simulate(membrane.problem(N=6), out=out, checkpoint_every=14, on_step=kill, **kw)
     if COMM.rank == 0:
         rows = (out / "timeseries.csv").read_text().splitlines()
-        assert len(rows) == 22 and all(len(r.split(",")) == 9 for r in rows)   # header + steps 0..20
+        assert len(rows) == 22 and all(len(r.split(",")) == len(rows[0].split(",")) for r in rows)   # header + steps 0..20
     r = simulate(membrane.problem(N=6), out=out, restart=True, **kw)
     assert r.info["restarted_from_step"] == 14
     simulate(membrane.problem(N=6), out=mpi_tmp_path / "ref", **kw)
@@ -142,6 +166,7 @@ def test_killed_run_keeps_whole_rows_and_restarts(mpi_tmp_path):
 
 
 @pytest.mark.skipif(COMM.size > 1, reason="kills a separate serial process")
+@pytest.mark.slow
 def test_sigkill_then_restart_reproduces_the_run(tmp_path):
     """A real SIGKILL (no handler, no clean-up) after the first checkpoint: the CSV holds
     whole rows, solution.h5 is readable (it is closed between writes), and --restart
@@ -153,7 +178,7 @@ def test_sigkill_then_restart_reproduces_the_run(tmp_path):
     cut = tmp_path / "cut"
     step = _run_until_killed(cmd, cut, 120)
     rows = (cut / "timeseries.csv").read_text().splitlines()
-    assert all(len(r.split(",")) == 9 for r in rows) and int(rows[-1].split(",")[0]) > step >= 50
+    assert all(len(r.split(",")) == len(rows[0].split(",")) for r in rows) and int(rows[-1].split(",")[0]) > step >= 50
     import h5py
     with h5py.File(cut / "solution.h5", "r") as h5:
         assert len(h5["Function/displacement"]) >= step // 20
@@ -176,8 +201,9 @@ def test_sigkill_then_restart_reproduces_the_run(tmp_path):
 
 @pytest.mark.skipif(COMM.size > 1, reason="kills a separate serial process")
 def test_restart_sets_damaged_hdf5_aside(tmp_path):
-    """If the kill hit a write and left solution.h5 unreadable, the restart says so, moves
-    the file aside (solution.damaged.h5) and continues in new files; the CSV is complete."""
+    """A solution.h5 damaged by something else than the run (its undo log restores only what
+    the run wrote): the restart says so in one line, moves the file aside
+    (solution.damaged.h5) and continues in new files; the CSV is complete."""
     args = ["membrane", "--N", "16", "--dt", "2e-3", "--T", "0.4", "--write-every", "10",
             "--checkpoint-every", "40", "--quiet"]
     cmd = [sys.executable, "-m", "sdm_dolfinx"] + args
@@ -187,7 +213,8 @@ def test_restart_sets_damaged_hdf5_aside(tmp_path):
     r = subprocess.run([sys.executable, "-m", "sdm_dolfinx", "membrane", "--restart", str(cut)],
                        capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr
-    assert "could not be read" in r.stderr and "solution.damaged.h5" in r.stderr
+    assert r.stderr.startswith("warning: solution.h5 ") and len(r.stderr.splitlines()) == 1, r.stderr
+    assert "solution.damaged.h5" in r.stderr
     assert (cut / "solution.damaged.h5").exists()
     from sdm_dolfinx.post.render import read_xdmf
     times = read_xdmf(cut).times
@@ -226,7 +253,7 @@ def test_restart_continues_the_disc_exactly(mpi_tmp_path):
     _interrupted_then_restarted(make, mpi_tmp_path / "cut", 105, **kw)
     if COMM.rank == 0:
         a, b = read_csv(mpi_tmp_path / "ref" / "timeseries.csv"), read_csv(mpi_tmp_path / "cut" / "timeseries.csv")
-        assert a.shape == b.shape == (121, 12)
+        assert a.shape == b.shape and a.shape[0] == 121
         assert a[:, 7].max() > 0                                           # it is in contact
         assert np.allclose(a, b, rtol=RTOL, atol=RTOL * np.abs(a).max(axis=0))
 

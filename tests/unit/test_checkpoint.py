@@ -185,9 +185,6 @@ def write_bytes(path, data):
     COMM.Barrier()
 
 
-@pytest.mark.xfail(strict=True, raises=zipfile.BadZipFile,
-                   reason="checkpoint.py load catches (OSError, ValueError, KeyError) only: a truncated .npz "
-                          "raises zipfile.BadZipFile on rank 0 (the other ranks would wait in bcast)")
 def test_truncated_checkpoint(mpi_tmp_path):
     # each rank reads through MPI.COMM_SELF so that the bug cannot hang the other rank
     V = space(COMM, "P2/P1", ())

@@ -1,0 +1,80 @@
+"""Helpers of the fault tests (test_faults_*.py): run the command line in a separate process
+(serially or under mpirun), and compare two run folders file by file. No tests here."""
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+
+#: OpenMPI as root, shared-memory transport, oversubscribed 2-core machine (STYLE.md)
+MPI_ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1", "OMPI_MCA_btl": "self,vader",
+           "OMPI_MCA_rmaps_base_oversubscribe": "1"}
+
+
+def command(args, ranks=1):
+    """The command line of ``python -m sdm_dolfinx ARGS`` (under mpirun with ``ranks`` > 1)."""
+    cmd = [sys.executable, "-m", "sdm_dolfinx", *map(str, args)]
+    return (["mpirun", "-n", str(ranks)] + cmd) if ranks > 1 else cmd
+
+
+def env():
+    return {**os.environ, **MPI_ENV}
+
+
+def run(args, ranks=1, timeout=600):
+    """Run the command to its end; the CompletedProcess (text output)."""
+    return subprocess.run(command(args, ranks), capture_output=True, text=True, timeout=timeout, env=env())
+
+
+def start(args, ranks=1):
+    """Start the command; the Popen (stderr piped, stdout discarded)."""
+    return subprocess.Popen(command(args, ranks), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                            env=env())
+
+
+def info(folder):
+    return json.loads((folder / "run.json").read_text())
+
+
+def rows(folder):
+    """Number of whole data rows in timeseries.csv (0 if none yet)."""
+    try:
+        lines = (folder / "timeseries.csv").read_text().splitlines()
+    except FileNotFoundError:
+        return 0
+    return max(len(lines) - 1, 0)
+
+
+def error_lines(stderr):
+    """The lines of stderr that are not warnings."""
+    return [ln for ln in stderr.splitlines() if ln.strip() and not ln.startswith("warning:")]
+
+
+def assert_same_run(ref, run, atol=0.0):
+    """``run`` holds the same files as ``ref``: timeseries.csv, solution.xdmf's XML and every
+    field at every time, every row of state.h5. ``atol`` 0: bit for bit (the CSV as text)."""
+    from sdm_dolfinx.post.xdmf import read_xdmf
+    import h5py
+    a = np.loadtxt(ref / "timeseries.csv", delimiter=",", skiprows=1, ndmin=2)
+    b = np.loadtxt(run / "timeseries.csv", delimiter=",", skiprows=1, ndmin=2)
+    assert a.shape == b.shape, (a.shape, b.shape)
+    if atol == 0.0:
+        assert (ref / "timeseries.csv").read_text() == (run / "timeseries.csv").read_text()
+        assert (ref / "solution.xdmf").read_text() == (run / "solution.xdmf").read_text()
+    else:
+        assert np.allclose(a, b, rtol=0, atol=atol * np.abs(a).max(axis=0))
+    sa, sb = read_xdmf(ref), read_xdmf(run)
+    assert sa.times == sb.times and sa.fields == sb.fields and len(sa.fields) == 4
+    assert np.array_equal(sa.points, sb.points) and np.array_equal(sa.cells, sb.cells)
+    for name in sa.fields:
+        for t in sa.times:
+            fa, fb = sa.field(name, t), sb.field(name, t)
+            assert np.allclose(fa, fb, rtol=0, atol=atol * max(np.abs(fa).max(), 1e-300)), (name, t)
+    with h5py.File(ref / "state.h5", "r") as x, h5py.File(run / "state.h5", "r") as y:
+        assert np.array_equal(x["step"][:], y["step"][:]) and np.array_equal(x["t"][:], y["t"][:])
+        for key in ("W/dof_coordinates", "V_space/dof_coordinates"):
+            assert np.array_equal(x[key][:], y[key][:])
+        for key in ("U", "V"):
+            assert np.allclose(x[key][:], y[key][:], rtol=0, atol=atol * np.abs(x[key][:]).max()), key
+    assert info(run)["status"] == "finished"
