@@ -44,9 +44,19 @@ def commands():
     return [*problems.names(builtin=True), "run", *TOOLS]
 
 
+def _one_line_warnings():
+    """Warnings (e.g. the boundary-gap warning) as ``warning: message`` lines on stderr, not
+    through the logging module (which prefixes ``WARNING:py.warnings:FILE:LINE:``)."""
+    import logging
+    import warnings
+    logging.captureWarnings(False)
+    warnings.formatwarning = lambda message, category, *args, **kwargs: f"warning: {message}\n"
+
+
 def main(argv=None):
     """Entry point; returns the exit status (0 ok, 1 failed run, 2 bad input, 128+sig interrupted)."""
     comm = MPI.COMM_WORLD
+    _one_line_warnings()
     argv = sys.argv[1:] if argv is None else list(argv)
     if not argv or argv[0] in ("-h", "--help"):
         if comm.rank == 0:

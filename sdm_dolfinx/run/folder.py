@@ -52,10 +52,34 @@ def read_info(folder, comm=MPI.COMM_WORLD):
 def check_out(out, overwrite, comm=MPI.COMM_WORLD):
     """The output folder must be writable and must not hold a run (unless ``overwrite``).
 
+    Returns:
+        the run id of the run.json seen (None: none), for :func:`same_run_as_checked` once
+        the run holds the folder's lock (another process may have started in between).
+
     Raises:
         RunFolderError: on every rank, with the reason and what to do.
     """
-    return on_rank0(comm, _check_out, Path(out), overwrite, wrap=RunFolderError)
+    on_rank0(comm, _check_out, Path(out), overwrite, wrap=RunFolderError)
+    return on_rank0(comm, _run_id, Path(out), wrap=RunFolderError)
+
+
+def _run_id(out):
+    try:
+        data = json.loads((out / "run.json").read_text())
+    except FileNotFoundError:
+        return None
+    except (OSError, ValueError, UnicodeDecodeError):
+        return "unreadable"
+    return data.get("run_id", "unknown") if isinstance(data, dict) else "unknown"
+
+
+def same_run_as_checked(out, seen, comm=MPI.COMM_WORLD):
+    """Under the folder's lock: the folder must still hold what :func:`check_out` saw (the
+    check and the lock are two steps: a run started between them must not be overwritten)."""
+    now = on_rank0(comm, _run_id, Path(out), wrap=RunFolderError)
+    if now != seen:
+        raise RunFolderError(f"{out} was written by another run since this one was checked (run id {now}); "
+                             f"use --overwrite or another --out")
 
 
 def _check_out(out, overwrite):

@@ -63,6 +63,8 @@ class RunPlan:
     options: dict
     out: object = None
     restart: bool = False
+    #: what the folder held when checked ({"run_id": ...}), checked again under the run's lock
+    folder_seen: object = None
 
     @property
     def steps(self):
@@ -74,7 +76,7 @@ class RunPlan:
         problem = self.spec.problem(comm, **self.params)
         return simulate(problem, out=self.out, restart=self.restart, progress=progress,
                         handle_signals=handle_signals, on_step=on_step, petsc_options=petsc_options,
-                        extra_info=extra_info, **self.options)
+                        extra_info=extra_info, folder_seen=self.folder_seen, **self.options)
 
 
 def plan(problem=None, params=None, *, out=None, overwrite=False, restart=False, comm=MPI.COMM_WORLD, cli=False,
@@ -109,13 +111,14 @@ def plan(problem=None, params=None, *, out=None, overwrite=False, restart=False,
     opts = {**RUN_DEFAULTS, **{k: v for k, v in spec.defaults.items() if k in RUN_DEFAULTS}, **options}
     check_options(opts)
     check_memory(spec, values, [opts["pair"]], comm, cli, options=opts, steps=num_steps(opts["T"], opts["dt"]))
+    seen = None
     if out is not None:
         check_out_name(out, cli)
         try:
-            check_out(Path(out), overwrite, comm)
+            seen = check_out(Path(out), overwrite, comm)
         except RunFolderError as e:
             raise RunInputError(str(e)) from None
-    return RunPlan(spec, values, opts, out)
+    return RunPlan(spec, values, opts, out, folder_seen={"run_id": seen} if out is not None else None)
 
 
 def launch(problem=None, params=None, *, out=None, overwrite=False, restart=False, comm=MPI.COMM_WORLD,

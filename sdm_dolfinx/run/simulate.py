@@ -16,10 +16,11 @@ import numpy as np
 
 from sdm_dolfinx import compat
 from sdm_dolfinx.method.discretisation import Discretisation
+from sdm_dolfinx.solvers import VIError
 from sdm_dolfinx.method.integrator import Integrator, StepError
 from sdm_dolfinx.mpiutil import atomic_write_text, json_text
 from sdm_dolfinx.run import checkpoint, restart as _restart
-from sdm_dolfinx.run.folder import FolderLock
+from sdm_dolfinx.run.folder import FolderLock, same_run_as_checked
 from sdm_dolfinx.run.observers import ConstraintProbe, PointProbe
 from sdm_dolfinx.run.outputs import RunFileError, RunFiles
 from sdm_dolfinx.run.result import Result, TimeSeries, num_steps
@@ -34,7 +35,7 @@ class SolverSetupError(RuntimeError):
 def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=None, vi_solver="ssn",
              linear="auto", out=None, write_every=None, progress=False, petsc_options=None,
              extra_info=None, checkpoint_every=None, restart=False, handle_signals=False, on_step=None,
-             constraint_tol=1e-8):
+             constraint_tol=1e-8, folder_seen=None):
     """Run ``problem`` with ``pair`` and ``scheme`` from t = 0 to T.
 
     Args:
@@ -56,6 +57,8 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
         on_step: ``f(step, row)`` called after every step with the time-series row (plus
             ``linear_its_total``, the cumulative linear iterations); returning True requests
             a stop (as a signal would).
+        folder_seen: ``{"run_id": ...}`` that :func:`sdm_dolfinx.run.folder.check_out` saw in
+            ``out`` (None: no check); checked again once the folder is locked.
         constraint_tol: a constrained iterate below its bound by more than this (relative
             to the largest |bound|, or absolute when the bounds are 0) stops the run.
 
@@ -81,7 +84,7 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
         signum = stop.agreed(loop.comm)
         if signum:
             raise Interrupted("interrupted during the set-up, before anything was written", signum)
-        loop.open(out, restart, write_every, {"run_options": run_options, **(extra_info or {})})
+        loop.open(out, restart, write_every, {"run_options": run_options, **(extra_info or {})}, folder_seen)
         loop.run(stop, progress, on_step, checkpoint_every, constraint_tol)
         return loop.finish()
     finally:
@@ -98,7 +101,7 @@ class _Loop:
         self.discretisation = d = Discretisation(problem, pair, mass)
         try:
             self.integ = Integrator(d, scheme, dt, vi_solver, linear, petsc_options)
-        except PETSc.Error as e:            # e.g. a -sdm_ option PETSc does not accept
+        except (PETSc.Error, VIError) as e:  # e.g. a -sdm_ option PETSc (or the step solver) does not accept
             raise SolverSetupError(f"PETSc could not set up the step solver: {_petsc_message(e)}") from None
         self.nsteps = num_steps(T, dt)
         self.setup_time = time.perf_counter() - wall0
@@ -117,7 +120,7 @@ class _Loop:
         self.history = SolverHistory(self.integ)
         self.files = self.lock = None
 
-    def open(self, out, restart, write_every, extra_info):
+    def open(self, out, restart, write_every, extra_info, folder_seen=None):
         """The folder's lock, run.json's first version, the restart (if any) and the files
         (if ``out``)."""
         d, integ = self.discretisation, self.integ
@@ -131,6 +134,8 @@ class _Loop:
         self.out, self.restarted, self.first = out, bool(restart), 0
         if out is not None:
             self.lock = FolderLock(out, self.comm)      # a second process in this folder stops here
+            if folder_seen is not None and not restart:
+                same_run_as_checked(out, folder_seen["run_id"], self.comm)
         if restart:
             self.first, self.run_id, outputs = _restart.resume(out, self.identity, self.fields_of, integ,
                                                                self.nsteps, self.comm, self.history)

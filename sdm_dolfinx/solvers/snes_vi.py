@@ -77,13 +77,18 @@ class SnesVI:
         # a piecewise-linear VI wants a full step (petsc4py 3.18 has no getLineSearch)
         self.options = {"snes_linesearch_type": "basic", **({"snes_monitor": ""} if monitor else {}),
                         **(options or {})}
-        with self.options_scope():
-            snes.setFromOptions()
-        max_it = snes.getTolerances()[3]
+        try:
+            with self.options_scope():
+                snes.setFromOptions()
+            max_it = snes.getTolerances()[3]
+        except PETSc.Error:                # PETSc >= 3.20 refuses a negative max_it itself
+            max_it = -1
         if max_it < 1:                     # SNES would stop before its first iteration
             for o in (snes, self.J, self.F, xl, xu):
                 o.destroy()
-            raise VIError(f"-{self.prefix}snes_max_it (or -sdm_snes_max_it): {max_it} is not an integer >= 1")
+            opts, key = PETSc.Options(), f"{self.prefix}snes_max_it"
+            value = opts.getString(key) if opts.hasName(key) else self.options.get("snes_max_it", max_it)
+            raise VIError(f"-{self.prefix}snes_max_it (or -sdm_snes_max_it): {value} is not an integer >= 1")
         self.snes = snes
         self.work = K.createVecRight()
 

@@ -31,7 +31,9 @@ def _read_only(folder, on):
     """Make ``folder`` unwritable even for root (the immutable attribute), or writable again."""
     if COMM.rank == 0:
         if os.geteuid() == 0:
-            subprocess.run(["chattr", "+i" if on else "-i", str(folder)], check=True)
+            r = subprocess.run(["chattr", "+i" if on else "-i", str(folder)], capture_output=True)
+            if r.returncode != 0 and on:       # no chattr, or a file system without attributes
+                pytest.skip(f"cannot make a folder read-only for root here: {r.stderr.decode().strip()}")
         else:
             folder.chmod(0o555 if on else 0o755)
     COMM.Barrier()

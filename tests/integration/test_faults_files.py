@@ -351,3 +351,18 @@ def test_undo_log_ignores_a_torn_entry(tmp_path):
     f.write_bytes(b"B" * 120)
     assert journal.rollback(f, "t" * 32, 100) == "ok"
     assert f.read_bytes() == b"B" * 10 + b"A" * 5 + b"B" * 85
+
+
+def test_a_run_started_between_the_check_and_the_lock_is_not_overwritten(mpi_tmp_path):
+    """The folder is checked (plan) before the run locks it (simulate): a run that took the
+    folder in between (here: the first plan, run to its end) must not be overwritten by the
+    second, which is refused in one line naming the other run."""
+    from sdm_dolfinx.run import RunFolderError, plan, read_info
+    out = mpi_tmp_path / "raced"
+    first = plan("membrane", {"N": 4}, out=out, dt=0.01, T=0.02)
+    second = plan("membrane", {"N": 4}, out=out, dt=0.01, T=0.02)
+    done = first.run()
+    with pytest.raises(RunFolderError, match="written by another run since this one was checked"):
+        second.run()
+    saved = read_info(out)
+    assert saved["status"] == "finished" and saved["run_id"] == done.info["run_id"]

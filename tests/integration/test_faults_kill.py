@@ -19,8 +19,8 @@ COMM = MPI.COMM_WORLD
 serial_only = pytest.mark.skipif(COMM.size > 1, reason="signals separate serial processes")
 
 #: a small run: 600 steps (contact from t ~ 0.25), fields and state.h5 at every step
-ARGS = ["membrane", "--N", "8", "--T", "0.6", "--write-every", "1", "--checkpoint-every", "7", "--quiet"]
-STEPS = 600
+ARGS = ["membrane", "--N", "8", "--T", "1.2", "--write-every", "1", "--checkpoint-every", "7", "--quiet"]
+STEPS = 1200
 
 
 def _csv_inode(folder):
@@ -38,7 +38,7 @@ def _kill_at(p, folder, rng, mode, inode=None):
     Returns what happened (None: the run ended first)."""
     t0 = time.monotonic()
     if mode == "time":
-        deadline = t0 + rng.uniform(0.05, 2.5)
+        deadline = t0 + rng.uniform(0.05, 1.0)
         while p.poll() is None and time.monotonic() < deadline:
             time.sleep(0.002)
         what = f"after {time.monotonic() - t0:.2f} s"
