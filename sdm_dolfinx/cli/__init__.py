@@ -4,6 +4,7 @@ Commands: one per registered problem (a run: :mod:`.run`), ``run`` for a problem
 the tools ``energy``, ``inspect`` and ``figures``. Each command's module does its argparse
 and one-line error handling; nothing in the package imports this layer.
 """
+import contextlib
 import importlib
 import sys
 
@@ -44,19 +45,31 @@ def commands():
     return [*problems.names(builtin=True), "run", *TOOLS]
 
 
+@contextlib.contextmanager
 def _one_line_warnings():
-    """Warnings (e.g. the boundary-gap warning) as ``warning: message`` lines on stderr, not
-    through the logging module (which prefixes ``WARNING:py.warnings:FILE:LINE:``)."""
+    """While a command runs, warnings (e.g. the boundary-gap warning) are ``warning: message``
+    lines on stderr, not routed through the logging module (ffcx turns that on, which prefixes
+    ``WARNING:py.warnings:FILE:LINE:``); both are restored afterwards."""
     import logging
     import warnings
-    logging.captureWarnings(False)
+    saved, captured = warnings.formatwarning, getattr(logging, "_warnings_showwarning", None) is not None
     warnings.formatwarning = lambda message, category, *args, **kwargs: f"warning: {message}\n"
+    logging.captureWarnings(False)
+    try:
+        yield
+    finally:
+        warnings.formatwarning = saved
+        logging.captureWarnings(captured)
 
 
 def main(argv=None):
     """Entry point; returns the exit status (0 ok, 1 failed run, 2 bad input, 128+sig interrupted)."""
     comm = MPI.COMM_WORLD
-    _one_line_warnings()
+    with _one_line_warnings():
+        return _main(argv, comm)
+
+
+def _main(argv, comm):
     argv = sys.argv[1:] if argv is None else list(argv)
     if not argv or argv[0] in ("-h", "--help"):
         if comm.rank == 0:
