@@ -28,15 +28,21 @@ def _run(folder):
 
 
 def _read_only(folder, on):
-    """Make ``folder`` unwritable even for root (the immutable attribute), or writable again."""
+    """Make ``folder`` unwritable even for root (the immutable attribute), or writable again;
+    every rank skips together where that cannot be done (no chattr, no attributes)."""
+    problem = None
     if COMM.rank == 0:
         if os.geteuid() == 0:
-            r = subprocess.run(["chattr", "+i" if on else "-i", str(folder)], capture_output=True)
-            if r.returncode != 0 and on:       # no chattr, or a file system without attributes
-                pytest.skip(f"cannot make a folder read-only for root here: {r.stderr.decode().strip()}")
+            try:
+                r = subprocess.run(["chattr", "+i" if on else "-i", str(folder)], capture_output=True)
+                problem = r.stderr.decode().strip() if r.returncode != 0 and on else None
+            except FileNotFoundError:
+                problem = "no chattr"
         else:
             folder.chmod(0o555 if on else 0o755)
-    COMM.Barrier()
+    problem = COMM.bcast(problem, root=0)
+    if problem:
+        pytest.skip(f"cannot make a folder read-only for root here: {problem}")
 
 
 @pytest.mark.parametrize("damage, message", [
