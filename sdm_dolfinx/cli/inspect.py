@@ -15,7 +15,8 @@ from pathlib import Path
 from mpi4py import MPI
 
 from sdm_dolfinx import compat, problems
-from sdm_dolfinx.cli.common import Parser, UsageError, check_writable, parse_or_help, report_usage_error, say_error
+from sdm_dolfinx.cli.common import (Parser, UsageError, check_writable, parse_or_help, positive_int,
+                                    report_usage_error, say_error)
 from sdm_dolfinx.cli.params import add_param_options, param_values
 from sdm_dolfinx.method.pairs import PAIRS
 from sdm_dolfinx.mpiutil import atomic_write_text, json_text
@@ -30,16 +31,6 @@ PROG = "python -m sdm_dolfinx inspect"
 DEFAULT_PROBLEM = "membrane"
 #: the mesh parameter a sweep varies, and its default values, per built-in problem
 SWEEPS = {"membrane": ("N", (4, 8, 16, 32, 64)), "disc": ("level", (1, 2, 3))}
-
-
-def _positive_int(text):
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1 (got {v})")
-    return v
 
 
 def _nonneg_float(text):
@@ -101,7 +92,7 @@ def build_parser(spec):
                    help=f"one or more pairs, or 'all': {', '.join(PAIRS)} (default: the problem's, "
                         f"{default_pair} for {spec.name})")
     param, default_values = _sweep_of(spec) or ("?", ())
-    p.add_argument("--sweep", nargs="*", type=_positive_int, default=None, metavar="V",
+    p.add_argument("--sweep", nargs="*", type=positive_int, default=None, metavar="V",
                    help=f"run a sequence of meshes: values of --{param} (default {' '.join(map(str, default_values))})"
                         " and print beta against h" if default_values else
                         "run a sequence of meshes (the membrane's --N, the disc's --level; not for this problem)")

@@ -65,7 +65,8 @@ class Integrator:
             linear = choose_strategy(discretisation.num_constraints, not self.block)
         if (vi_solver == "ssn" and linear in ("schur", "cg-factor") and not self.block
                 and discretisation.B is not None and discretisation.c_lumped is not None):
-            self.factor_matrix = sparse_factor_matrix(self.K, discretisation.A, discretisation.B, discretisation.c_lumped, self.alpha, discretisation.ddofs)
+            d = discretisation
+            self.factor_matrix = sparse_factor_matrix(self.K, d.A, d.B, d.c_lumped, self.alpha, d.ddofs)
         self.solver = make_vi_solver(vi_solver, self.K, discretisation.cdofs, discretisation.lb,
                                      symmetric_positive=not self.block, linear=linear, options=options,
                                      factor_matrix=self.factor_matrix)
