@@ -50,7 +50,7 @@ def test_sweep_prints_table_and_writes_png(mpi_tmp_path, capsys):
 @pytest.mark.parametrize("argv, message", [
     (["--pair", "P9/P9"], "unknown pair 'P9/P9'"),
     (["--N", "0"], "--N must be >= 1"),
-    (["--sweep", "0"], "must be >= 1"),
+    (["--sweep", "0"], "must be an integer >= 1"),
     (["--problem", "nope"], "invalid choice"),
     (["--png", "x.png"], "--png needs --sweep"),
     (["--tol", "-1"], "non-negative"),
