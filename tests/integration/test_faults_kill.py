@@ -114,7 +114,9 @@ def test_sigint_at_random_moments_leaves_a_restartable_or_empty_folder(tmp_path)
         seen.add(status)
         assert status in ("interrupted", "finished"), (kind, when, status, err)
         if status == "finished":
-            assert p.returncode == 0, err
+            # the signal came after the run's handlers were restored (the run had ended and its
+            # files were complete): Python's own SIGINT handling may end the process then
+            assert p.returncode in (0, 130, -signal.SIGINT), err
             continue
         assert p.returncode == 128 + signal.SIGINT and len(error_lines(err)) == 1, err
         assert "Traceback" not in err and (out / "checkpoint.npz").exists()
