@@ -160,7 +160,7 @@ def check_series(folder, step, comm):
         folder = Path(folder)
         csv = folder / "timeseries.csv"
         try:
-            rows = _whole_rows(csv.read_text().splitlines()) if csv.exists() else []
+            rows = _whole_rows(csv.read_text()) if csv.exists() else []
             last = max((int(ln.split(",", 1)[0]) for ln in rows[1:]), default=-1)
         except (OSError, ValueError, UnicodeDecodeError) as e:
             rows, last = [], -1
@@ -175,13 +175,18 @@ def check_series(folder, step, comm):
         raise CheckpointError(err)
 
 
-def _whole_rows(lines):
-    """The header and the rows with all its columns (a run killed while writing may leave a
-    partial last line)."""
+def _whole_rows(text):
+    """The header and the complete rows of a CSV's text. A run killed while writing may leave
+    a partial last line: every row is written with its newline in one call, so a last line
+    without one is torn (whatever its commas say), and a row must have every column."""
+    lines = text.splitlines()
     if not lines:
         return []
-    width = len(lines[0].split(","))
-    return lines[:1] + [ln for ln in lines[1:] if ln and len(ln.split(",")) == width]
+    if not text.endswith("\n"):
+        lines = lines[:-1]
+    width = len(lines[0].split(",")) if lines else 0
+    return lines[:1] + [ln for ln in lines[1:] if ln and len(ln.split(",")) == width
+                        and all(field.strip() for field in ln.split(","))]
 
 
 def truncate_csv(path, last_step, comm=None):
@@ -189,7 +194,7 @@ def truncate_csv(path, last_step, comm=None):
     With ``comm``: rank 0 does it and every rank gets the lines; without: the calling
     process does it (an OSError, a full disc, is then the caller's to share)."""
     if comm is None:
-        lines = _whole_rows(Path(path).read_text().splitlines())
+        lines = _whole_rows(Path(path).read_text())
         keep = lines[:1] + [ln for ln in lines[1:] if int(ln.split(",", 1)[0]) <= last_step]
         atomic_write_text(path, "\n".join(keep) + "\n")
         return keep

@@ -141,8 +141,6 @@ def test_truncate_csv_keeps_whole_rows(mpi_tmp_path):
     assert ck.truncate_csv(path, 100, COMM) == [HEADER] + rows
 
 
-@pytest.mark.xfail(strict=True, reason="checkpoint.py _whole_rows counts commas only: a line torn right after a "
-                                       "comma ('8,8.0e-03,') has the header's width and is kept as a row")
 def test_truncate_csv_drops_a_line_torn_after_a_comma(mpi_tmp_path):
     path = mpi_tmp_path / "timeseries.csv"
     rows = [f"{n},{n * 1e-3:.3e},{0.012:.6e}" for n in range(3)]
