@@ -82,16 +82,12 @@ def _config_value(path, action, key, value):
                 and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)):
             raise bad(f"a list of {n} numbers")
         return [float(v) for v in value]
-    if action.type in (int, positive_int):
-        if not isinstance(value, int) or isinstance(value, bool):
-            raise bad("an integer")
-        try:
-            return action.type(str(value))
-        except argparse.ArgumentTypeError as e:
-            raise UsageError(f"{path}: key '{key}': {e}") from None
-    if action.type in (float, positive_float):
-        if not isinstance(value, (int, float)) or isinstance(value, bool):
-            raise bad("a number")
+    numbers = {int: (int, "an integer"), positive_int: (int, "an integer"),
+               float: ((int, float), "a number"), positive_float: ((int, float), "a number")}
+    if action.type in numbers:
+        kinds, expected = numbers[action.type]
+        if not isinstance(value, kinds) or isinstance(value, bool):
+            raise bad(expected)
         try:
             return action.type(str(value))
         except argparse.ArgumentTypeError as e:

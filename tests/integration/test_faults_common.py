@@ -6,6 +6,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 #: OpenMPI as root, shared-memory transport, oversubscribed 2-core machine (STYLE.md)
 MPI_ENV = {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1", "OMPI_MCA_btl": "self,vader",
@@ -78,3 +79,16 @@ def assert_same_run(ref, run, atol=0.0):
         for key in ("U", "V"):
             assert np.allclose(x[key][:], y[key][:], rtol=0, atol=atol * np.abs(x[key][:]).max()), key
     assert info(run)["status"] == "finished"
+
+
+@pytest.fixture
+def small_disc(tmp_path):
+    """A 2 MB tmpfs (root only), unmounted afterwards; skips where mounting is not allowed."""
+    mnt = tmp_path / "disc"
+    mnt.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=2m", "tmpfs", str(mnt)], capture_output=True).returncode:
+        pytest.skip("cannot mount a tmpfs here (needs root)")
+    try:
+        yield mnt
+    finally:
+        subprocess.run(["umount", "-l", str(mnt)], capture_output=True)

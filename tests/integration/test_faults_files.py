@@ -19,7 +19,8 @@ from sdm_dolfinx import cli, membrane, simulate
 from sdm_dolfinx.run import CheckpointError, Interrupted, RunInputError, plan
 from sdm_dolfinx.run.folder import FolderInUseError, FolderLock
 from sdm_dolfinx.run.outputs import RunFileError
-from test_faults_common import assert_same_run, error_lines, info, rows, run, start
+from test_faults_common import (assert_same_run, error_lines, info, rows, run, small_disc,  # noqa: F401 (fixture)
+                                start)
 
 COMM = MPI.COMM_WORLD
 serial_only = pytest.mark.skipif(COMM.size > 1, reason="starts separate serial processes")
@@ -109,19 +110,6 @@ def test_two_runs_started_at_once_into_a_new_folder(tmp_path):
 
 
 # ---------------------------------------------------------------------- item 4: full disc
-@pytest.fixture
-def small_disc(tmp_path):
-    """A 2 MB tmpfs (root only), unmounted afterwards; skips where mounting is not allowed."""
-    mnt = tmp_path / "disc"
-    mnt.mkdir()
-    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=2m", "tmpfs", str(mnt)], capture_output=True).returncode:
-        pytest.skip("cannot mount a tmpfs here (needs root)")
-    try:
-        yield mnt
-    finally:
-        subprocess.run(["umount", "-l", str(mnt)], capture_output=True)
-
-
 @serial_only
 def test_full_disc_fails_in_one_line_and_restarts_once_there_is_space(small_disc, tmp_path):
     """--out on a 2 MB tmpfs: one line ("no space left on device while writing ..."), exit

@@ -14,7 +14,7 @@ from mpi4py import MPI
 import numpy as np
 import pytest
 
-from test_faults_common import error_lines, info, rows, run, start
+from test_faults_common import error_lines, info, rows, run, small_disc, start  # noqa: F401  (small_disc: a fixture)
 
 COMM = MPI.COMM_WORLD
 pytestmark = [pytest.mark.mpi, pytest.mark.skipif(COMM.size > 1, reason="starts its own mpirun")]
@@ -70,17 +70,6 @@ def test_restart_on_two_ranks_writes_partition_independent_files(tmp_path):
             assert np.allclose(x["Function/displacement"][key][:], y["Function/displacement"][key][:],
                                rtol=0, atol=1e-10), key
 
-
-@pytest.fixture
-def small_disc(tmp_path):
-    mnt = tmp_path / "disc"
-    mnt.mkdir()
-    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=2m", "tmpfs", str(mnt)], capture_output=True).returncode:
-        pytest.skip("cannot mount a tmpfs here (needs root)")
-    try:
-        yield mnt
-    finally:
-        subprocess.run(["umount", "-l", str(mnt)], capture_output=True)
 
 
 def test_full_disc_on_two_ranks_fails_in_one_line(small_disc):

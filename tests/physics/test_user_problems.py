@@ -101,11 +101,10 @@ def test_ramp_load_on_a_free_block_is_the_schemes_rigid_translation(scheme):
     assert np.max(np.abs(r.timeseries["momentum_y"] - mass * v)) <= 1e-7 * mass * np.max(v)
 
 
-def test_load_flipped_in_on_step_is_used_with_time_declared():
-    """The load Constant flipped from -0.6 to +0.6 after the step reaching t = 0.2 (on_step): with
-    ``time`` declared L is reassembled every step, so the block moves as its closed form
-    u = -0.3 t^2 until 0.2, then u(0.2) + v(0.2) s + 0.3 s^2 (s = t - 0.2), exactly."""
-    dt, box = 0.01, {}
+def flipped_load(dt):
+    """(load, on_step): a load Constant (0, -0.6) that ``on_step`` flips to (0, +0.6) after the
+    step reaching t = 0.2."""
+    box = {}
 
     def load(msh, t):
         box["c"] = fem.Constant(msh, PETSc.ScalarType((0.0, -0.6)))
@@ -114,6 +113,15 @@ def test_load_flipped_in_on_step_is_used_with_time_declared():
     def flip(step, row):
         if abs(step * dt - 0.2) < 1e-9:
             box["c"].value = (0.0, 0.6)
+    return load, flip
+
+
+def test_load_flipped_in_on_step_is_used_with_time_declared():
+    """The load Constant flipped from -0.6 to +0.6 after the step reaching t = 0.2 (on_step): with
+    ``time`` declared L is reassembled every step, so the block moves as its closed form
+    u = -0.3 t^2 until 0.2, then u(0.2) + v(0.2) s + 0.3 s^2 (s = t - 0.2), exactly."""
+    dt = 0.01
+    load, flip = flipped_load(dt)
 
     r = simulate(block(floor=False, v0=0.0, load=load, time=time_constant), pair="P2/P1", dt=dt, T=0.4,
                  on_step=flip)
@@ -127,15 +135,8 @@ def test_load_constant_changed_without_time_stops_the_run():
     """The same flip without ``time``: L was assembled once and the flip would have no effect at
     all (the run equal to the constant-load run to the last digit); the run stops at the next
     step naming the Constant and both values."""
-    dt, box = 0.01, {}
-
-    def load(msh, t):
-        box["c"] = fem.Constant(msh, PETSc.ScalarType((0.0, -0.6)))
-        return box["c"]
-
-    def flip(step, row):
-        if abs(step * dt - 0.2) < 1e-9:
-            box["c"].value = (0.0, 0.6)
+    dt = 0.01
+    load, flip = flipped_load(dt)
 
     with pytest.raises(StepError) as e:
         simulate(block(floor=False, v0=0.0, load=load), pair="P2/P1", dt=dt, T=0.4, on_step=flip)
