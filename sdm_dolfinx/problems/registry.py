@@ -16,6 +16,9 @@ from mpi4py import MPI
 from sdm_dolfinx.problems.base import ProblemInputError, ProblemSpec, one_line, user_line
 
 _REGISTRY = {}
+#: the keys a ProblemSpec's ``defaults`` may hold: the run options, and the unit of dt and T
+DEFAULT_KEYS = ("pair", "scheme", "dt", "T", "mass", "vi_solver", "linear", "write_every", "checkpoint_every",
+                "time_unit")
 
 
 def register(spec):
@@ -23,6 +26,10 @@ def register(spec):
     if not isinstance(spec, ProblemSpec):
         raise TypeError(f"register() takes a ProblemSpec, got {type(spec).__name__}")
     _check_build_signature(spec)
+    unknown = sorted(set(spec.defaults) - set(DEFAULT_KEYS))
+    if unknown:       # a misspelt default would otherwise be ignored without a word
+        raise ProblemInputError(f"problem {spec.name!r}: unknown key(s) {', '.join(map(repr, unknown))} in defaults; "
+                                f"allowed: {', '.join(DEFAULT_KEYS)}")
     old = _REGISTRY.get(spec.name)
     if old is not None and old.source != spec.source:
         where = old.source or "sdm_dolfinx (built in)"

@@ -356,3 +356,19 @@ def test_disc_args_round_trip_through_json():
         assert (again.mesh.topology.index_map(dim).size_global == prob.mesh.topology.index_map(dim).size_global)
     # the mass recorded is rho pi R^2 (a closed form)
     assert math.isclose(again.parameters["mass"], 2e-6 * math.pi * 400.0, rel_tol=1e-14)
+
+
+def test_a_misspelt_default_is_refused(clean_registry):
+    """A run default the package does not know (here "dT") would be ignored: refused at
+    registration in one line naming it."""
+    spec = ProblemSpec(name="typo", build=lambda comm: None, params=(), defaults={"dT": 0.5})
+    with pytest.raises(ProblemInputError, match="unknown key.*'dT'") as e:
+        problems.register(spec)
+    one_line(e)
+
+
+def test_default_keys_are_the_run_options():
+    """The keys registration accepts are exactly what run.launch reads from defaults (plus the
+    time unit): the two lists cannot drift apart."""
+    from sdm_dolfinx.run import RUN_DEFAULTS
+    assert set(registry.DEFAULT_KEYS) == set(RUN_DEFAULTS) | {"time_unit"}
