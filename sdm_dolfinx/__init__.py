@@ -20,6 +20,9 @@ import ffcx  # noqa: F401  (its logging.basicConfig creates the root handler)
 # root logger's level while it compiles): keep the console to warnings and errors.
 for _h in logging.getLogger().handlers:
     _h.setLevel(logging.WARNING)
+# ffcx also routes Python warnings into logging ("WARNING:py.warnings:FILE:LINE: ..." and a
+# blank line): our warnings (e.g. BoundaryGapWarning) are one line each, shown by Python itself.
+logging.captureWarnings(False)
 
 from sdm_dolfinx.problems import disc, membrane  # noqa: E402
 from sdm_dolfinx.problems.base import Problem  # noqa: E402

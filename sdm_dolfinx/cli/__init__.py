@@ -47,19 +47,15 @@ def commands():
 
 @contextlib.contextmanager
 def _one_line_warnings():
-    """While a command runs, warnings (e.g. the boundary-gap warning) are ``warning: message``
-    lines on stderr, not routed through the logging module (ffcx turns that on, which prefixes
-    ``WARNING:py.warnings:FILE:LINE:``); both are restored afterwards."""
-    import logging
+    """While a command runs, warnings (e.g. the boundary-gap warning) read ``warning: message``
+    on stderr; Python's own format is restored afterwards."""
     import warnings
-    saved, captured = warnings.formatwarning, getattr(logging, "_warnings_showwarning", None) is not None
+    saved = warnings.formatwarning
     warnings.formatwarning = lambda message, category, *args, **kwargs: f"warning: {message}\n"
-    logging.captureWarnings(False)
     try:
         yield
     finally:
         warnings.formatwarning = saved
-        logging.captureWarnings(captured)
 
 
 def main(argv=None):
