@@ -62,11 +62,35 @@ def petsc_vec(f):
     return f.vector
 
 
-def form(expr, jit_options=None):
-    """``fem.form`` with JIT options (``jit_params`` in 0.5, ``jit_options`` later)."""
+def form(expr, jit_options=None, quadrature_degree=None):
+    """``fem.form`` with JIT options (``jit_params`` in 0.5, ``jit_options`` later) and a
+    quadrature degree.
+
+    ``quadrature_degree``: None leaves ffcx's choice (UFL's estimated degree); an integer is
+    the degree of every integral of ``expr`` (a form, or a list of them, None entries kept)
+    whose measure does not set one itself (``ufl.dx(metadata={"quadrature_degree": q})``
+    wins, as in ffcx). It goes into each integral's metadata, the one place ffcx reads it in
+    0.5 and 0.9 alike: neither has a form-compiler option for it (0.5 accepts
+    ``form_compiler_params={"quadrature_degree": q}`` and ignores it: measured, the same matrix
+    with q = 1 as with q = 12).
+    """
+    if quadrature_degree is not None:
+        expr = _with_degree(expr, int(quadrature_degree))
     if NEW_API:  # pragma: no cover
         return fem.form(expr, jit_options=jit_options)
     return fem.form(expr, jit_params=jit_options)
+
+
+def _with_degree(expr, degree):
+    """``expr`` (a form, a list of forms or None) with ``degree`` in the metadata of every
+    integral that has none."""
+    if expr is None:
+        return None
+    if isinstance(expr, (list, tuple)):
+        return [_with_degree(e, degree) for e in expr]
+    return ufl.Form([itg if "quadrature_degree" in itg.metadata()
+                     else itg.reconstruct(metadata={**itg.metadata(), "quadrature_degree": degree})
+                     for itg in expr.integrals()])
 
 
 def petsc_module():

@@ -82,6 +82,14 @@ def _config_value(path, action, key, value):
                 and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)):
             raise bad(f"a list of {n} numbers")
         return [float(v) for v in value]
+    kinds = getattr(action.type, "toml_types", None)      # a number or a word (--quadrature-degree)
+    if kinds is not None:
+        if not isinstance(value, kinds) or isinstance(value, bool):
+            raise bad(action.type.toml_expected)
+        try:
+            return action.type(str(value))
+        except argparse.ArgumentTypeError as e:
+            raise UsageError(f"{path}: key '{key}': {e}") from None
     numbers = {int: (int, "an integer"), positive_int: (int, "an integer"),
                float: ((int, float), "a number"), positive_float: ((int, float), "a number")}
     if action.type in numbers:

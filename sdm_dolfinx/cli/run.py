@@ -17,7 +17,7 @@ from petsc4py import PETSc
 from sdm_dolfinx.cli.common import Parser, UsageError, folder_path, positive_float, positive_int, say_error
 from sdm_dolfinx.cli.config import load_config, read_toml
 from sdm_dolfinx.cli.params import add_param_options, param_values
-from sdm_dolfinx.method import schemes
+from sdm_dolfinx.method import quadrature, schemes
 from sdm_dolfinx.method.integrator import StepError
 from sdm_dolfinx.method.pairs import MASS_TREATMENTS, PAIRS
 from sdm_dolfinx.problems import ProblemInputError, get, load_file, spec_of_run
@@ -28,7 +28,8 @@ from sdm_dolfinx.solvers import LINEAR_STRATEGIES, VI_OPTIONS, VI_SOLVERS
 
 PROG = "python -m sdm_dolfinx"
 #: the parsed options that are run options of :func:`sdm_dolfinx.run.plan`
-RUN_OPTIONS = ("pair", "mass", "scheme", "dt", "T", "vi_solver", "linear", "write_every", "checkpoint_every")
+RUN_OPTIONS = ("pair", "mass", "scheme", "dt", "T", "vi_solver", "linear", "write_every", "checkpoint_every",
+               "quadrature_degree")
 
 PETSC_EPILOG = (
     "PETSc options of the step solver can be added as -sdm_<option>: -sdm_vi_rtol (default 1e-10, "
@@ -64,6 +65,11 @@ def add_run_options(p, defaults):
                         "on the inactive set; lu = refactorise at every Newton iteration; amg = CG + BoomerAMG on "
                         "the reduced matrix (set up when the active set changes); cg-amg = CG on the inactive set "
                         "with one BoomerAMG set-up of the step matrix")
+    g.add_argument("--quadrature-degree", type=quadrature_degree, default=S, metavar="Q",
+                   help=f"quadrature degree of every form: auto = UFL's exact estimate on affine simplices, "
+                        f"{quadrature.CURVED_DEGREE} on curved cells (the disc's P2 geometry: entries converged to "
+                        f"round-off; default); {quadrature.ESTIMATED} = UFL's estimate everywhere (runs before this "
+                        f"option); or an integer from 1 to {quadrature.MAX_DEGREE}")
     o = p.add_argument_group("output")
     o.add_argument("--out", type=folder_path, default=None, help="output folder (default output/<problem>)")
     o.add_argument("--write-every", type=positive_int, default=S, metavar="K",
@@ -79,6 +85,29 @@ def add_run_options(p, defaults):
                    help="continue the run in DIR from its checkpoint, with the problem, parameters and options of "
                         "DIR/run.json (same number of ranks; only --checkpoint-every and --quiet may be given)")
     p.epilog = PETSC_EPILOG
+
+
+def quadrature_degree(text):
+    """argparse type of --quadrature-degree: an integer from 1 to MAX_DEGREE, ``auto`` (None) or
+    ``estimated``."""
+    word = str(text).strip()
+    if word in (quadrature.AUTO, quadrature.ESTIMATED):
+        return None if word == quadrature.AUTO else word
+    try:
+        value = int(word)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer, {quadrature.AUTO} or "
+                                         f"{quadrature.ESTIMATED}") from None
+    if not 1 <= value <= quadrature.MAX_DEGREE:
+        raise argparse.ArgumentTypeError(f"{value} is out of range: from 1 to {quadrature.MAX_DEGREE} (the "
+                                         f"largest Xiao-Gimbutas rule of basix; the disc's entries stop "
+                                         f"changing at {quadrature.CURVED_DEGREE})")
+    return value
+
+
+#: a TOML value of --quadrature-degree: an integer or a word
+quadrature_degree.toml_types = (int, str)
+quadrature_degree.toml_expected = f"an integer, {quadrature.AUTO!r} or {quadrature.ESTIMATED!r}"
 
 
 def build_parser(spec, command):
@@ -184,7 +213,7 @@ def make_plan(spec, args, command, comm):
 
 def _cli_words(msg):
     """Run-option names as the command line spells them."""
-    for k in ("write_every", "checkpoint_every", "vi_solver", "dt", "T"):
+    for k in ("write_every", "checkpoint_every", "vi_solver", "quadrature_degree", "dt", "T"):
         msg = msg.replace(f"{k} must", f"--{k.replace('_', '-')} must").replace(f"{k} (", f"--{k} (")
     return msg
 

@@ -14,6 +14,7 @@ from dolfinx import fem, mesh as dmesh
 from sdm_dolfinx import compat
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.method.frozen import FrozenData
+from sdm_dolfinx.method import quadrature
 from sdm_dolfinx.method.pairs import MASS_TREATMENTS, get_pair
 
 #: an initial displacement below the bound by more than this times max(1, max |bound|) at a
@@ -64,14 +65,21 @@ class Discretisation:
         mass: how C is treated: ``"diagonal"`` (P0: exact), ``"lumped"`` (P1, row sums),
             ``"consistent"`` (P1: the (U, V) block system, M never formed) or ``"standard"``
             (H^h = W^h). ``None`` picks the pair's default.
+        quadrature_degree: the quadrature degree of every form (A, L, B, C, M, the lumped
+            measure): None (automatic: UFL's exact estimate on affine simplices, 12 on curved
+            cells, see :mod:`.quadrature`), ``"estimated"`` (UFL's estimate everywhere: runs
+            before the option) or an integer; the value used is :attr:`quadrature_degree`.
 
     Raises:
         ProblemInputError: the Problem's own validation (:meth:`Problem.validate`).
         DiscretisationError: the pair has no element on the mesh's cell type.
     """
 
-    def __init__(self, problem, pair, mass=None):
+    def __init__(self, problem, pair, mass=None, quadrature_degree=None):
         problem.validate()          # a field may have been changed since the Problem was made
+        bad = quadrature.check(quadrature_degree)
+        if bad:
+            raise ValueError(bad[0])
         self.problem = problem
         self.pair = get_pair(pair) if isinstance(pair, str) else pair
         self.mass = mass or self.pair.default_mass()
@@ -89,7 +97,7 @@ class Discretisation:
         self.Q1 = compat.function_space(msh, compat.element("Lagrange", cell, 1))
         self.P1 = (self.Q1 if not shape else compat.function_space(msh, compat.element("Lagrange", cell, 1, shape)))
         self._mass = None
-        self._assemble()
+        self._assemble(quadrature_degree)
         self._constraints()
         self._dirichlet()
         self._boundary()
@@ -97,27 +105,30 @@ class Discretisation:
                                  self._dirichlet_x(), self.comm)
 
     # ------------------------------------------------------------------ matrices
-    def _assemble(self):
+    def _assemble(self, quadrature_degree):
         p = self.problem
-        W = self.W
-        u, w = ufl.TrialFunction(W), ufl.TestFunction(W)
+        u, w = ufl.TrialFunction(self.W), ufl.TestFunction(self.W)
         rho = fem.Constant(p.mesh, PETSc.ScalarType(p.rho))
         self._a_ufl, self._l_ufl = p.a(u, w), p.l(w)
-        self.A = compat.assemble_matrix(compat.form(self._a_ufl))
-        self.L_form = compat.form(self._l_ufl)
+        if self.mass == "standard":
+            mass = {"M": rho * ufl.inner(u, w) * ufl.dx}
+        else:
+            q, r = ufl.TestFunction(self.H), ufl.TrialFunction(self.H)
+            mass = {"B": rho * ufl.inner(u, q) * ufl.dx, "C": rho * ufl.inner(r, q) * ufl.dx}   # N_H x N_W, N_H x N_H
+        self._measure_ufl = p.constraint_measure(ufl.TestFunction(self.Q1))
+        #: the quadrature degree of every form: an integer, or "estimated" (UFL's estimate of each)
+        self.quadrature_degree = quadrature.effective(
+            quadrature_degree, p.mesh, [self._a_ufl, self._l_ufl, self._measure_ufl, *mass.values()])
+        self.A = compat.assemble_matrix(self.form(self._a_ufl))
+        self.L_form = self.form(self._l_ufl)
         if p.time is not None:
             p.time.value = 0.0
         self.L = compat.assemble_vector(self.L_form)       # L(0) for a time-dependent load
-        self.B = self.C = self.c_lumped = None
-        if self.mass == "standard":
-            self.M = compat.assemble_matrix(compat.form(rho * ufl.inner(u, w) * ufl.dx))
-            return
-        q, r = ufl.TestFunction(self.H), ufl.TrialFunction(self.H)
-        self.B = compat.assemble_matrix(compat.form(rho * ufl.inner(u, q) * ufl.dx))   # N_H x N_W
-        self.C = compat.assemble_matrix(compat.form(rho * ufl.inner(r, q) * ufl.dx))   # N_H x N_H
-        if self.mass == "consistent":
-            self.M = None        # never formed: the integrator solves the (U, V) block system
-            return
+        self.B = self.C = self.c_lumped = self.M = None
+        for name, m in mass.items():
+            setattr(self, name, compat.assemble_matrix(self.form(m)))
+        if self.mass in ("standard", "consistent"):
+            return               # consistent: M never formed, the integrator solves the (U, V) block system
         # C diagonal: exact for P0 (C is diagonal), row-sum lumping for P1
         ones = self.C.createVecRight()
         ones.set(1.0)
@@ -129,6 +140,12 @@ class Discretisation:
         Bs.diagonalScale(L=cinv)                  # C^-1 B
         self.M = self.B.transposeMatMult(Bs)      # B^T C^-1 B
         Bs.destroy()
+
+    def form(self, expr):
+        """The compiled form of the UFL ``expr`` at this discretisation's quadrature degree
+        (for every form assembled with its matrices: the integrator's block system, a
+        recomputed energy)."""
+        return compat.form(expr, quadrature_degree=quadrature.compiler_degree(self.quadrature_degree))
 
     def load(self, t, out):
         """Reassemble L at time ``t`` into ``out`` (a Problem declaring ``time``); returns ``out``."""
@@ -227,8 +244,7 @@ class Discretisation:
         self.lb = np.asarray(p.lower_bound(xv), dtype=PETSc.ScalarType).reshape(-1)
         self.num_constraints = self.comm.allreduce(len(self.cdofs), op=MPI.SUM)
         # lumped nodal measure at each constrained vertex (for stress = multiplier / measure)
-        qv = ufl.TestFunction(self.Q1)
-        m = compat.assemble_vector(compat.form(p.constraint_measure(qv)))
+        m = compat.assemble_vector(self.form(self._measure_ufl))
         m.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
         with m.localForm() as ml:
             meas = ml.array_r[vertex_to_dof(self.Q1, self.cverts)] if self.cverts.size else np.zeros(0)

@@ -84,8 +84,8 @@ class Integrator:
             v, q = ufl.TrialFunction(H), ufl.TestFunction(H)
             rho = fem.Constant(p.mesh, PETSc.ScalarType(p.rho))
             al = fem.Constant(p.mesh, PETSc.ScalarType(a))
-            forms = [[compat.form(p.a(u, w)), compat.form(al * rho * ufl.inner(v, w) * ufl.dx)],
-                     [compat.form(al * rho * ufl.inner(u, q) * ufl.dx), compat.form(-rho * ufl.inner(v, q) * ufl.dx)]]
+            forms = [[d.form(p.a(u, w)), d.form(al * rho * ufl.inner(v, w) * ufl.dx)],       # the degree of A, B, C
+                     [d.form(al * rho * ufl.inner(u, q) * ufl.dx), d.form(-rho * ufl.inner(v, q) * ufl.dx)]]
             K = compat.assemble_matrix_block(forms)
         self.K_full = K
         # Dirichlet dofs (constant values g): identity rows and columns, lifting z = K g

@@ -16,6 +16,7 @@ import ufl
 from dolfinx import fem
 
 from sdm_dolfinx import compat
+from sdm_dolfinx.method import quadrature
 from sdm_dolfinx.method.discretisation import Discretisation
 from sdm_dolfinx.mpiutil import atomic_write_text
 from sdm_dolfinx.post.read import StateReader, read_info, read_timeseries
@@ -43,7 +44,7 @@ def recompute_energy(folder, comm=MPI.COMM_WORLD, write=True):
     """
     info = read_info(folder, comm)
     problem = rebuild_problem(info, comm)
-    disc = Discretisation(problem, info["pair"], info.get("mass"))
+    disc = Discretisation(problem, info["pair"], info.get("mass"), quadrature.of_run(info))   # the run's degree
     Vs = disc.H if info.get("mass") == "consistent" else disc.W
     reader = StateReader(folder, disc.W, Vs, comm)
     cols, roundoff = _energies(problem, disc, Vs, reader, comm)
@@ -59,9 +60,9 @@ def _energies(problem, disc, Vs, reader, comm):
     u, v = fem.Function(disc.W), fem.Function(Vs)
     w = ufl.TestFunction(disc.W)
     # potential: 1/2 a(u, u) - l(u), the run's own UFL forms with u the stored field
-    pot_form = compat.form(0.5 * problem.a(u, u) - ufl.action(problem.l(w), u))
+    pot_form = disc.form(0.5 * problem.a(u, u) - ufl.action(problem.l(w), u))
     rho = fem.Constant(problem.mesh, float(problem.rho))
-    kin_form = compat.form(0.5 * rho * ufl.inner(v, v) * ufl.dx) if Vs is not disc.W else None
+    kin_form = disc.form(0.5 * rho * ufl.inner(v, v) * ufl.dx) if Vs is not disc.W else None
     Mv = disc.M.createVecLeft() if kin_form is None else None
     cols = {c: np.zeros(len(reader)) for c in ENERGY_COLUMNS}
     absA = _abs_matrix(disc.A)

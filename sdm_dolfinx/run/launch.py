@@ -17,7 +17,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from sdm_dolfinx.method import schemes
+from sdm_dolfinx.method import quadrature, schemes
 from sdm_dolfinx.method.pairs import get_pair
 from sdm_dolfinx.problems import ProblemInputError, resolve, spec_of_run
 from sdm_dolfinx.run.folder import RunFolderError, check_out, read_info
@@ -27,7 +27,7 @@ from sdm_dolfinx.solvers import LINEAR_STRATEGIES, VI_SOLVERS
 
 #: the run options and their defaults where the problem declares none
 RUN_DEFAULTS = {"pair": "P1+/P0", "scheme": "midpoint", "dt": 1e-3, "T": 0.8, "mass": None, "vi_solver": "ssn",
-                "linear": "auto", "write_every": None, "checkpoint_every": None}
+                "linear": "auto", "write_every": None, "checkpoint_every": None, "quadrature_degree": None}
 #: options a restart may change (the others are the run's)
 RESTART_MAY_CHANGE = ("checkpoint_every",)
 #: the longest run accepted (T / dt): ~100 bytes of time series per step in memory
@@ -160,6 +160,7 @@ def check_options(o):
         errors.append(f"unknown step solver {o['vi_solver']!r}; choose one of {', '.join(VI_SOLVERS)}")
     if o["linear"] not in LINEAR_STRATEGIES:
         errors.append(f"unknown linear strategy {o['linear']!r}; choose one of {', '.join(LINEAR_STRATEGIES)}")
+    errors += quadrature.check(o["quadrature_degree"])
     if errors:
         raise RunInputError("; ".join(errors))
 
@@ -312,12 +313,15 @@ def _restart_plan(out, options, comm):
         raise RunFolderError(f"{out}/run.json does not say how the run was started (written by an older version "
                              f"or by a problem built by hand): it cannot be continued")
     saved = dict(info["run_options"])
+    # a run.json from before the option: its forms had UFL's estimated degrees
+    saved.setdefault("quadrature_degree", quadrature.ESTIMATED)
     changed = [f"{k} = {v!r} (the run has {saved.get(k)!r})" for k, v in options.items()
                if k not in RESTART_MAY_CHANGE and v != saved.get(k)]
     if changed:
         raise RunFolderError(f"a restart continues the run as it was started; it cannot change "
                              f"{', '.join(changed)} (only {', '.join(RESTART_MAY_CHANGE)} may change)")
     saved.update({k: v for k, v in options.items() if k in RESTART_MAY_CHANGE and v is not None})
+    saved["quadrature_degree"] = quadrature.of_run(info)      # the degree it used (the automatic choice may change)
     try:
         spec = spec_of_run(info["problem"])
     except ProblemInputError as e:

@@ -35,7 +35,7 @@ class SolverSetupError(RuntimeError):
 def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=None, vi_solver="ssn",
              linear="auto", out=None, write_every=None, progress=False, petsc_options=None,
              extra_info=None, checkpoint_every=None, restart=False, handle_signals=False, on_step=None,
-             constraint_tol=1e-8, folder_seen=None):
+             constraint_tol=1e-8, folder_seen=None, quadrature_degree=None):
     """Run ``problem`` with ``pair`` and ``scheme`` from t = 0 to T.
 
     Args:
@@ -44,6 +44,9 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
         scheme: a registered time scheme (:mod:`sdm_dolfinx.method.schemes`).
         dt, T: time step and final time.
         mass: C treatment (``None``: the pair's default).
+        quadrature_degree: quadrature degree of every form (None: UFL's exact estimate on affine
+            simplices, 12 on curved cells; ``"estimated"``; an integer), see
+            :mod:`sdm_dolfinx.method.quadrature`; the degree used is run.json's ``quadrature_degree``.
         vi_solver, linear, petsc_options: the step solver (see :mod:`sdm_dolfinx.solvers`).
         out: output folder (``timeseries.csv``, ``run.json``, ``solution.xdmf``) or None.
         write_every: XDMF output every K steps (default 10 when ``out`` is given).
@@ -76,11 +79,11 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
     wall0 = time.perf_counter()
     run_options = {"pair": pair if isinstance(pair, str) else pair.name, "scheme": scheme, "dt": dt, "T": T,
                    "mass": mass, "vi_solver": vi_solver, "linear": linear, "write_every": write_every,
-                   "checkpoint_every": checkpoint_every}
+                   "checkpoint_every": checkpoint_every, "quadrature_degree": quadrature_degree}
     stop = StopFlag(handle_signals)      # before anything is built or written
     loop = None
     try:
-        loop = _Loop(problem, pair, scheme, dt, T, mass, vi_solver, linear, petsc_options, wall0)
+        loop = _Loop(problem, pair, scheme, dt, T, mass, vi_solver, linear, petsc_options, wall0, quadrature_degree)
         signum = stop.agreed(loop.comm)
         if signum:
             raise Interrupted("interrupted during the set-up, before anything was written", signum)
@@ -96,9 +99,10 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
 class _Loop:
     """The state of one run between :func:`simulate`'s phases (set-up, files, steps, end)."""
 
-    def __init__(self, problem, pair, scheme, dt, T, mass, vi_solver, linear, petsc_options, wall0):
+    def __init__(self, problem, pair, scheme, dt, T, mass, vi_solver, linear, petsc_options, wall0,
+                 quadrature_degree=None):
         self.wall0, self.dt, self.comm = wall0, dt, problem.mesh.comm
-        self.discretisation = d = Discretisation(problem, pair, mass)
+        self.discretisation = d = Discretisation(problem, pair, mass, quadrature_degree)
         try:
             self.integ = Integrator(d, scheme, dt, vi_solver, linear, petsc_options)
         except (PETSc.Error, VIError) as e:  # e.g. a -sdm_ option PETSc (or the step solver) does not accept
@@ -125,6 +129,7 @@ class _Loop:
         (if ``out``)."""
         d, integ = self.discretisation, self.integ
         self.info = {**self.identity, "T": self.nsteps * self.dt, "steps": self.nsteps, **d.dims(),
+                     "quadrature_degree": d.quadrature_degree,
                      "versions": compat.versions(), "displacement_reported": "U^{n+1} (end of step)",
                      "constraint_imposed_on": integ.time_scheme.constrained,
                      "lambda_probe": {"vertex": self.cprobe.vertex[:2].tolist(),
