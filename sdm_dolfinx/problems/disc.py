@@ -29,7 +29,8 @@ from sdm_dolfinx.problems.disc_mesh import ALGORITHM, LEVELS, LOWER, make_mesh, 
 CONTACT_ZONES = ("lower", "all")
 
 #: the unit of every parameter and time-series column (for run.json; --help states them too)
-UNITS = {"level": "-", "h": "mm (gmsh mesh size)", "mesh_file": "- (gmsh file read instead of generating)",
+UNITS = {"level": "-", "h": "mm (gmsh mesh size)",
+         "mesh_file": "- (gmsh .msh or GetFEM .mesh file in mm, read instead of generating)",
          "radius": "mm", "centre": "mm",
          "height": "mm (initial height of the lowest point A above the foundation y = 0)",
          "rho": "t/mm^3", "lame_lambda": "N/mm^2", "lame_mu": "N/mm^2", "gravity": "mm/s^2 (downward)",
@@ -153,8 +154,10 @@ PARAMS = (
     Param("level", 1, "mesh level; P2 dofs close to the paper's Table 2 (622, 2782, 11306, 45706, 126892, 511386)",
           type=int, choices=tuple(sorted(LEVELS))),
     Param("h", None, "gmsh mesh size (overrides --level)", unit="mm", type=float, low=0.0, low_strict=True),
-    Param("mesh_file", None, "a gmsh .msh file of the disc (3- or 6-node triangles, mm) instead of --level/--h; "
-          "its bounding box must match --radius and --height", type=Path, flag="mesh", metavar="FILE"),
+    Param("mesh_file", None, "a mesh file of the disc instead of --level/--h, in mm: gmsh .msh (3- or 6-node "
+          "triangles, placed as ours: centre (0, radius + height)) or GetFEM .mesh (GT_PK(2,2) triangles, centre "
+          "(0, radius) as in the paper's disc_P2_h*.mesh: moved up by --height); it must be the disc of --radius",
+          type=Path, flag="mesh", metavar="FILE"),
     Param("radius", 20.0, "disc radius", unit="mm", low=0.0, low_strict=True),
     Param("height", 10.0, "initial height of the lowest point A above the foundation", unit="mm", low=0.0),
     Param("rho", 1e-6, "density", unit="t/mm^3", low=0.0, low_strict=True),

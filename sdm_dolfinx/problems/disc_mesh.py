@@ -4,13 +4,15 @@ The disc is built on one rank with gmsh's built-in kernel from four quarter arcs
 lowest point A is a mesh vertex; ``setOrder(2)`` puts the edge midpoints of boundary
 triangles on the circle (P2 geometry). dolfinx then distributes it. No mesh file is
 stored: the same gmsh version gives the same mesh. ``disc --mesh FILE.msh`` reads a mesh of
-one's own instead (:func:`read_mesh`; :func:`write_msh` writes ours as a starting point).
+one's own instead (:func:`read_mesh`; :func:`write_msh` writes ours as a starting point), and
+``disc --mesh FILE.mesh`` a GetFEM mesh (:mod:`.getfem_mesh`), such as the paper's own meshes.
 """
 from mpi4py import MPI
 
 import numpy as np
 
 from sdm_dolfinx import compat
+from sdm_dolfinx.problems import getfem_mesh
 
 #: facet tags of the boundary: the lower and the upper half circle
 LOWER, UPPER = 1, 2
@@ -175,17 +177,31 @@ def _open_msh(gmsh, path):
     return None
 
 
+def _read_getfem(path, radius, centre, comm, rank):
+    """A GetFEM ``.mesh`` disc, moved from GetFEM's placement (lowest point A at the origin,
+    centre (0, ``radius``): the paper's ``disc_P2_h*.mesh``) to ours: translated by
+    (centre_x, centre_y - radius), i.e. up by the height of A above the foundation."""
+    try:
+        return getfem_mesh.read(path, (centre[0], centre[1] - radius), comm=comm, rank=rank)
+    except getfem_mesh.GetfemFormatError as e:
+        raise MeshError(str(e)) from None
+
+
 def read_mesh(path, radius, centre, comm=MPI.COMM_WORLD, rank=0):
-    """The disc's mesh from a gmsh file: (mesh, facet_tags), the boundary facets tagged
+    """The disc's mesh from a gmsh file, or a GetFEM file if its name ends in ``.mesh``
+    (:func:`_read_getfem`): (mesh, facet_tags), the boundary facets tagged
     :data:`LOWER` (all nodes at y <= centre) and :data:`UPPER` from their coordinates, so
     that any mesh of the disc works. Raises :class:`MeshError` (on every rank) when the
     file is missing or unreadable, when its bounding box is not the disc of ``radius``
     centred at ``centre`` (1 % of the radius), or when a vertex of its boundary is not on
     that circle (relative tolerance :data:`CIRCLE_RTOL`: a square or an ellipse with the
     disc's bounding box is not the disc)."""
+    getfem = str(path).lower().endswith(".mesh")
     # gmsh opens the file on ``rank`` and dolfinx distributes the model, as for make_mesh
     # (dolfinx 0.5.2's own gmshio.read_from_msh fails: it returns an undefined name)
-    if comm.rank == rank:
+    if getfem:
+        msh, err = _read_getfem(path, radius, centre, comm, rank), None
+    elif comm.rank == rank:
         with _Gmsh() as gmsh:
             err = comm.bcast(_open_msh(gmsh, path), root=rank)
             if err is None:
@@ -204,7 +220,9 @@ def read_mesh(path, radius, centre, comm=MPI.COMM_WORLD, rank=0):
     if np.max(np.abs(np.concatenate([lo - want_lo, hi - want_hi]))) > 0.01 * radius:
         raise MeshError(f"{path}: the mesh spans x in [{lo[0]:.4g}, {hi[0]:.4g}], y in [{lo[1]:.4g}, "
                         f"{hi[1]:.4g}] mm, not the disc of radius {radius:g} centred at ({centre[0]:g}, "
-                        f"{centre[1]:g}): set --radius and --height to match it")
+                        f"{centre[1]:g}): set --radius and --height to match it"
+                        + (" (a GetFEM .mesh is read as centred at (0, radius) and moved up by the height)"
+                           if getfem else ""))
     from dolfinx import mesh as dmesh
     tdim = msh.topology.dim
     msh.topology.create_connectivity(tdim - 1, tdim)
