@@ -34,6 +34,7 @@ from vtkmodules.util.numpy_support import vtk_to_numpy
 
 import numpy as np
 
+#: the arrays every run's file holds (``Vbar_W`` too when H^h differs from W^h in the M formulation)
 FIELDS = ("displacement", "velocity", "contact_stress", "active")
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -58,12 +59,25 @@ def leaves(data):
     return [data]
 
 
-def inspect(path, fields=FIELDS):
-    """Read ``path`` with Xdmf3ReaderS at every time step; returns (summary dict, list of failures)."""
+def stored_fields(path):
+    """The field names ``path`` lists (its Attribute names), in the file's order."""
+    import xml.etree.ElementTree as ET
+    names = []
+    for a in ET.parse(path).getroot().iter("Attribute"):
+        if a.get("Name") not in names:
+            names.append(a.get("Name"))
+    return tuple(names)
+
+
+def inspect(path, fields=None):
+    """Read ``path`` with Xdmf3ReaderS at every time step; returns (summary dict, list of failures).
+    ``fields``: the arrays expected (default: every field the file lists, at least :data:`FIELDS`)."""
+    fields = fields or stored_fields(path)
     failures = []
     reader = Xdmf3ReaderS(FileName=[str(path)])
     reader.UpdatePipelineInformation()
     times = [float(t) for t in reader.TimestepValues]
+    failures += [f"{path.name}: field {f!r} is not listed" for f in FIELDS if f not in fields]
     if not times:
         failures.append(f"{path.name}: no time steps")
     elif times[0] != 0.0 or any(b <= a for a, b in zip(times, times[1:])):
@@ -76,22 +90,23 @@ def inspect(path, fields=FIELDS):
         summary.setdefault("blocks", len(blocks))
         arrays = {}
         for b in blocks:
-            pd = b.GetPointData()
-            for i in range(pd.GetNumberOfArrays()):
-                name = pd.GetArrayName(i)
-                if name in arrays:
-                    failures.append(f"{path.name}, t = {t}: array {name!r} appears in two blocks")
-                arrays[name] = (vtk_to_numpy(pd.GetArray(i)).copy(), b.GetNumberOfPoints(), b.GetNumberOfCells())
+            for data, centre in ((b.GetPointData(), "points"), (b.GetCellData(), "cells")):
+                for i in range(data.GetNumberOfArrays()):
+                    name = data.GetArrayName(i)
+                    if name in arrays:
+                        failures.append(f"{path.name}, t = {t}: array {name!r} appears in two blocks")
+                    arrays[name] = (vtk_to_numpy(data.GetArray(i)).copy(), b.GetNumberOfPoints(), b.GetNumberOfCells(),
+                                    centre)
         for f in fields:
             if f not in arrays:
                 failures.append(f"{path.name}, t = {t}: array {f!r} missing (found {sorted(arrays)})")
                 continue
-            a, npts, ncells = arrays[f]
+            a, npts, ncells, centre = arrays[f]
             summary["n_points"], summary["n_cells"] = npts, ncells
             info = summary["arrays"][f]
-            info["components"] = 1 if a.ndim == 1 else a.shape[1]
-            if a.shape[0] != npts:
-                failures.append(f"{path.name}, t = {t}: {f} has {a.shape[0]} values for {npts} points")
+            info["components"], info["centre"] = 1 if a.ndim == 1 else a.shape[1], centre
+            if a.shape[0] != (npts if centre == "points" else ncells):
+                failures.append(f"{path.name}, t = {t}: {f} has {a.shape[0]} values for {npts} points, {ncells} cells")
             if not np.all(np.isfinite(a)):
                 failures.append(f"{path.name}, t = {t}: {f} has non-finite values")
             info["min"].append(float(np.min(a)))
@@ -171,8 +186,8 @@ def main(argv=None):
         failures.append("the merged file has other times than solution.xdmf")
     # solution.xdmf declares no precision: ParaView reads it in single precision (Xdmf's default),
     # the merged file in double; the ranges agree to float32 round-off
-    for f in FIELDS:
-        a, b = raw["arrays"][f], merged["arrays"][f]
+    for f in raw["arrays"]:
+        a, b = raw["arrays"][f], merged["arrays"].get(f, {"min": [], "max": []})
         a, b = np.array([a["min"], a["max"]]), np.array([b["min"], b["max"]])
         if a.shape != b.shape or np.any(np.abs(a - b) > 2 * np.finfo(np.float32).eps * max(np.abs(b).max(), 1e-300)):
             failures.append(f"{f}: the merged file's ranges differ from solution.xdmf's")
@@ -187,10 +202,9 @@ def main(argv=None):
     print(f"paraview-check: {xdmf}: {n} time steps (t = {raw['times'][0]:g} .. {raw['times'][-1]:g}), "
           f"{raw.get('n_points')} points, {raw.get('n_cells')} cells, {raw.get('blocks')} blocks "
           f"({merged_path.name}: {merged.get('blocks')})")
-    for f in FIELDS:
-        a = raw["arrays"][f]
+    for f, a in raw["arrays"].items():
         if a["min"]:
-            print(f"  {f:15s} {a['components']} component(s), range [{min(a['min']):.4g}, {max(a['max']):.4g}]")
+            print(f"  {f:15s} {a['components']} component(s) on {a['centre']}, range [{min(a['min']):.4g}, {max(a['max']):.4g}]")
     if args.png:
         print(f"  rendered {args.png}")
     for msg in failures:

@@ -138,14 +138,28 @@ class Result:
         return self._function(self.discretisation.W, self.U, "displacement")
 
     def velocity(self):
-        """The final velocity as a dolfinx Function: Vbar in W^h, or V in H^h for the consistent block variant.
-
-        Only M Vbar is determined by the scheme; with a singular M (dim H^h < dim W^h) Vbar also has
-        a component in Ker(M) that carries no kinetic energy (see docs/outputs.md).
-        """
+        """The final physical velocity as a dolfinx Function: v_h = C^-1 B Vbar in H^h (C as the
+        run treats it: diagonal for P0, lumped for P1), V in H^h for the consistent block
+        variant, Vbar in W^h for the standard method (H^h = W^h). The XDMF's ``velocity``."""
         d = self.discretisation
-        space = d.H if (d.mass == "consistent") else d.W
-        return self._function(space, self.V, "velocity")
+        if d.mass == "consistent":
+            return self._function(d.H, self.V, "velocity")
+        if d.H is None:
+            return self._function(d.W, self.V, "velocity")
+        h = d.B.createVecLeft()
+        d.B.mult(self.V, h)
+        h.pointwiseDivide(h, d.c_lumped)
+        return self._function(d.H, h, "velocity")
+
+    def vbar(self):
+        """The final Vbar in W^h, the scheme's M-formulation vector (the XDMF's ``Vbar_W``): only
+        M Vbar is determined by the scheme; with a singular M (dim H^h < dim W^h) Vbar also has a
+        component in Ker(M) that carries no kinetic energy (see docs/outputs.md). ValueError for
+        the consistent block variant, which has no Vbar."""
+        d = self.discretisation
+        if d.mass == "consistent":
+            raise ValueError("the (U, V) block system (--mass consistent) has no Vbar: its velocity is in H^h")
+        return self._function(d.W, self.V, "Vbar_W")
 
     def max_energy_deviation(self):
         """max_n |J^n - J^0| / |J^0| of the discrete energy (Theorem 2: 0 for the midpoint scheme without impact)."""

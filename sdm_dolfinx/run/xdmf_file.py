@@ -10,8 +10,9 @@ import numpy as np
 from dolfinx import fem
 
 from sdm_dolfinx import compat
-from sdm_dolfinx.mpiutil import atomic_write_text, gather_rows
+from sdm_dolfinx.mpiutil import atomic_write_text
 from sdm_dolfinx.run.journal import FileVanished
+from sdm_dolfinx.run.xdmf_nodes import output_nodes
 
 
 def match_rows(saved, mine, what):
@@ -29,11 +30,6 @@ def match_rows(saved, mine, what):
     return idx
 
 
-#: XDMF topology names of (cell, geometry degree), as dolfinx writes them
-_XDMF_CELLS = {("triangle", 1): "Triangle", ("triangle", 2): "Triangle_6",
-               ("quadrilateral", 1): "Quadrilateral", ("quadrilateral", 2): "Quadrilateral_9",
-               ("tetrahedron", 1): "Tetrahedron", ("tetrahedron", 2): "Tetrahedron_10",
-               ("hexahedron", 1): "Hexahedron", ("interval", 1): "PolyLine"}
 _XINCLUDE = ("<xi:include xpointer=\"xpointer(/Xdmf/Domain/Grid[@GridType='Uniform'][1]/*[self::Topology or "
              "self::Geometry])\" />")
 
@@ -44,111 +40,52 @@ def time_key(t):
     return text, text.replace(".", "_")
 
 
-class _NodeOrder:
-    """The mesh's geometry nodes in their input order (partition-independent) and the cells in
-    a canonical order, gathered on rank 0; :meth:`values` gathers a field's nodal values in
-    that order.
-
-    The field's space must be Lagrange of the geometry's degree: its k-th cell dof is then
-    the k-th geometry node of the cell (checked by coordinates)."""
-
-    def __init__(self, msh):
-        self.comm = comm = msh.comm
-        geo = msh.geometry
-        self.gdim, tdim = geo.dim, msh.topology.dim
-        nloc = geo.index_map().size_local
-        self.nloc = nloc
-        inputs = np.asarray(geo.input_global_indices, dtype=np.int64)
-        gdm = compat.mesh_geometry_dofmap(msh)
-        ncells = msh.topology.index_map(tdim).size_local
-        nodes = gdm.shape[1]
-        from dolfinx.cpp.io import perm_vtk
-        perm = np.argsort(np.asarray(perm_vtk(msh.topology.cell_type, nodes)))
-        all_inputs = gather_rows(inputs[:nloc], comm)
-        x = gather_rows(np.asarray(geo.x[:nloc, :self.gdim]), comm)
-        cells = gather_rows(inputs[gdm[:ncells]][:, perm].reshape(-1, nodes), comm)
-        self.gdm, self.nodes = gdm, nodes
-        self.cell_name = compat.cell_name(msh)
-        self.degree = int(geo.cmap.degree)
-        key = (self.cell_name, self.degree)
-        if key not in _XDMF_CELLS:
-            raise NotImplementedError(f"XDMF output of {self.cell_name} cells of degree {self.degree}")
-        self.topology_type = _XDMF_CELLS[key]
-        self.num_nodes = comm.allreduce(nloc, op=MPI.SUM)
-        self.num_cells = comm.allreduce(ncells, op=MPI.SUM)
-        self._dof_of_node = {}
-        self.order = self.geometry = self.topology = None
-        if comm.rank == 0:
-            self.order = np.argsort(all_inputs, kind="stable")
-            ranked = all_inputs[self.order]
-            self.geometry = x[self.order]
-            topo = np.searchsorted(ranked, cells).astype(np.int64)
-            key_rows = np.sort(topo, axis=1)
-            self.topology = topo[np.lexsort(key_rows.T[::-1])] if len(topo) else topo
-
-    def dof_of_node(self, V):
-        """For the local nodes, the dof (block) of V at that node."""
-        key = id(V)
-        if key not in self._dof_of_node:
-            dofs = compat.dofmap_list(V)
-            m = np.full(self.gdm.max(initial=-1) + 1, -1, dtype=np.int64)
-            m[self.gdm.reshape(-1)] = dofs.reshape(-1)
-            xdof = V.tabulate_dof_coordinates()[m[:self.nloc]]
-            xnode = V.mesh.geometry.x[:self.nloc]
-            scale = max(float(np.abs(xnode).max(initial=0.0)), 1.0)
-            if self.comm.allreduce(bool(len(xdof) and np.abs(xdof - xnode).max() > 1e-9 * scale), op=MPI.LOR):
-                raise RuntimeError("the output space's dofs are not at the mesh's geometry nodes")
-            self._dof_of_node[key] = m
-        return self._dof_of_node[key]
-
-    def values(self, f):
-        """The nodal values of ``f`` (n, components) in input order on rank 0 (None elsewhere)."""
-        V = f.function_space
-        bs = V.dofmap.index_map_bs
-        m = self.dof_of_node(V)[:self.nloc]
-        vals = gather_rows(np.asarray(f.x.array).reshape(-1, bs)[m], self.comm)
-        return vals[self.order] if self.comm.rank == 0 else None
-
 
 class XDMFWriter:
-    """solution.xdmf + solution.h5: displacement, velocity, contact stress and active set at
-    the mesh's nodes, in dolfinx's layout (ParaView and :func:`sdm_dolfinx.post.xdmf.read_xdmf`
-    read it as before).
+    """solution.xdmf + solution.h5: the fields of every K-th step in dolfinx's layout (ParaView
+    and :func:`sdm_dolfinx.post.xdmf.read_xdmf` read it).
 
-    The fields are explicit P1 interpolants (on a curved quadratic mesh, interpolated again
-    to its geometry nodes, so midside nodes carry the average of their vertices). Rank 0
-    writes them after a gather, in the mesh's input node order (the same file on any
-    number of ranks); the HDF5 file through its :class:`JournaledFile`, then the whole XML
-    atomically (it lists only steps whose data is complete).
+    Fields (docs/outputs.md): ``displacement`` (U^{n+1}), ``velocity`` (the physical velocity:
+    the SDM velocity in H^h, C^-1 B Vbar, or V of the (U, V) system; Vbar itself for the
+    standard method, where H^h = W^h), ``Vbar_W`` (only when H^h differs from W^h in the M
+    formulation: the W^h vector Vbar whose Ker(B) part is arbitrary, not a velocity),
+    ``contact_stress`` and ``active``. A P0 velocity is written per cell, the rest at the nodes
+    of :func:`~sdm_dolfinx.run.xdmf_nodes.output_nodes`: the mesh's own (on a curved quadratic
+    mesh its midside nodes too), or, for a P2 displacement on an affine mesh, the mesh as
+    straight quadratic cells, so that the mid-edge values of P2 fields are seen. A field whose
+    space is Lagrange of degree <= the nodes' degree is written exactly; others (P1+) through
+    their vertex values. Rank 0 writes after a gather, in a partition-independent order (the
+    same file on any number of ranks); the HDF5 file through its :class:`JournaledFile`, then
+    the whole XML atomically (it lists only steps whose data is complete).
 
     Args:
         journal: the HDF5 file's :class:`JournaledFile` (rank 0; None elsewhere).
         steps: None for new files; else the steps already in the HDF5 file (a restart).
     """
 
-    FIELDS = ("displacement", "velocity", "contact_stress", "active")
-
     def __init__(self, path, discretisation, integrator, dt, journal=None, steps=None):
         self.discretisation, self.integ, self.dt = discretisation, integrator, dt
-        msh = discretisation.problem.mesh
+        d = discretisation
+        msh = d.problem.mesh
         self.path, self.comm, self.journal = Path(path), msh.comm, journal
         self.h5name = self.path.with_suffix(".h5").name
-        self.nodes = _NodeOrder(msh)
-        self.uW = fem.Function(discretisation.W)
-        self.vsrc = fem.Function(discretisation.H if integrator.block else discretisation.W)
-        self.u1 = fem.Function(discretisation.P1, name="displacement")
-        self.v1 = fem.Function(discretisation.P1, name="velocity")
-        self.s1 = fem.Function(discretisation.Q1, name="contact_stress")
-        self.a1 = fem.Function(discretisation.Q1, name="active")
-        self.out = {}                   # P1 field -> the geometry-degree Function written
-        for f in (self.u1, self.v1, self.s1, self.a1):
-            self.out[f.name] = f
-            if self.nodes.degree != 1:
-                shape = f.ufl_shape
-                G = compat.function_space(msh, compat.element("Lagrange", compat.cell_name(msh), self.nodes.degree,
-                                                              shape))
-                self.out[f.name] = fem.Function(G, name=f.name)
-        self.vector = len(self.u1.ufl_shape) > 0
+        wdeg = d.pair.w[1] if d.pair.w[0] == "P" else None
+        self.nodes = output_nodes(msh, wdeg)
+        self.vector = bool(d.problem.shape)
+        self.uW = fem.Function(d.W)
+        self.vH = fem.Function(d.H) if d.H is not None else None
+        self.vW = fem.Function(d.W) if not integrator.block else None
+        self.s1, self.a1 = fem.Function(d.Q1), fem.Function(d.Q1)
+        # name -> (source Function, its Lagrange degree: 0 = P0 (written per cell), None = other)
+        pair = d.pair
+        vel = (self.vH, pair.h[1]) if self.vH is not None else (self.vW, wdeg)
+        src = {"displacement": (self.uW, wdeg), "velocity": vel, "contact_stress": (self.s1, 1), "active": (self.a1, 1)}
+        if self.vH is not None and self.vW is not None:
+            src["Vbar_W"] = (self.vW, wdeg)
+        self.FIELDS = tuple(n for n in ("displacement", "velocity", "Vbar_W", "contact_stress", "active") if n in src)
+        self.src = {n: f for n, (f, _) in src.items()}
+        self.cell_fields = {n for n, (_, k) in src.items() if k == 0}
+        self.out = {n: self._route(f, k) for n, (f, k) in src.items() if k != 0}
         self.map = None
         self.steps = list(steps or [])
         self.xml_inode = None
@@ -165,26 +102,45 @@ class XDMFWriter:
                                        f"{self.path.with_suffix('.h5')} (mesh)")
                 missing = [name for n in self.steps for name in self._datasets(n) if name not in h5]
                 if missing:
-                    raise ValueError(f"{self.path.with_suffix('.h5')}: {missing[0]} is missing")
+                    raise ValueError(f"{self.path.with_suffix('.h5')}: {missing[0]} is missing (written by an "
+                                     f"older version or damaged)")
             self._write_xml(replace_any=True)
+
+    def _route(self, f, degree):
+        """(Function on the output nodes or None: f's own P1, P1 interpolant on the way or None).
+
+        A Lagrange field of degree <= the nodes' is interpolated exactly; another (P1+) through
+        its vertex values."""
+        d, deg = self.discretisation, self.nodes.degree
+        shape = f.ufl_shape
+        exact = degree is not None and degree <= deg
+        via = None if exact else fem.Function(d.P1 if shape else d.Q1)
+        if deg == 1:                           # the mesh's vertices: f itself (P1) or its P1 interpolant
+            return None, via
+        msh = d.problem.mesh
+        return fem.Function(compat.function_space(msh, compat.element("Lagrange", compat.cell_name(msh), deg, shape))), via
 
     def _datasets(self, n):
         key = time_key(n * self.dt)[1]
         return [f"Function/{name}/{key}" for name in self.FIELDS]
 
-    def write(self, U, V, lam, active, n):
-        """Write the displacement, velocity, contact stress and active set of step ``n`` (collective).
-
-        The fields are interpolated into P1 (vertex values) so that dolfinx 0.5 and 0.10 write the same file;
-        the contact stress is each constrained vertex's multiplier divided by its lumped measure.
-        """
+    def _fill(self, U, V, lam, active):
+        """The source functions of the fields from the step's vectors (collective)."""
         d = self.discretisation
         self.uW.x.array[:len(U.array)] = U.array
-        self.uW.x.scatter_forward()
-        self.u1.interpolate(self.uW)
-        self.vsrc.x.array[:len(V.array)] = V.array
-        self.vsrc.x.scatter_forward()
-        self.v1.interpolate(self.vsrc)
+        if self.integ.block:
+            self.vH.x.array[:len(V.array)] = V.array
+        else:
+            self.vW.x.array[:len(V.array)] = V.array
+            if self.vH is not None:                 # the physical velocity C^-1 B Vbar (C diagonal)
+                h = d.B.createVecLeft()
+                d.B.mult(V, h)
+                h.pointwiseDivide(h, d.c_lumped)
+                self.vH.x.array[:len(h.array)] = h.array
+                h.destroy()
+        for f in (self.uW, self.vH, self.vW):
+            if f is not None:
+                f.x.scatter_forward()
         for f, vals in ((self.s1, lam / np.where(d.cmeasure > 0, d.cmeasure, 1.0)),
                         (self.a1, active.astype(float))):
             f.x.array[:] = 0.0
@@ -192,17 +148,33 @@ class XDMFWriter:
             vec = compat.petsc_vec(f)
             vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
             vec.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
-        data = {}
-        for f in (self.u1, self.v1, self.s1, self.a1):
-            g = self.out[f.name]
-            if g is not f:
-                g.interpolate(f)
-                g.x.scatter_forward()
-            vals = self.nodes.values(g)
-            if self.comm.rank == 0:
-                if vals.shape[1] > 1:           # vectors padded to 3 components, as dolfinx does
-                    vals = pad3(vals)
-                data[f.name] = vals if self.map is None else vals[self.map]
+
+    def _values(self, name):
+        """The rows of field ``name`` on rank 0 (None elsewhere), vectors padded to 3 (collective)."""
+        f = self.src[name]
+        if name in self.cell_fields:
+            vals = self.nodes.cell_values(f)
+        else:
+            out, via = self.out[name]
+            if via is not None:
+                via.interpolate(f)
+                f = via
+            if out is not None:
+                out.interpolate(f)
+                out.x.scatter_forward()
+                f = out
+            vals = self.nodes.values(f)
+        if self.comm.rank != 0:
+            return None
+        if vals.shape[1] > 1:                   # vectors padded to 3 components, as dolfinx does
+            vals = pad3(vals)
+        return vals if (self.map is None or name in self.cell_fields) else vals[self.map]
+
+    def write(self, U, V, lam, active, n):
+        """Write the fields of step ``n`` (collective); the contact stress is each constrained
+        vertex's multiplier divided by its lumped measure."""
+        self._fill(U, V, lam, active)
+        data = {name: self._values(name) for name in self.FIELDS}
         if self.comm.rank == 0:
             names = self._datasets(n)
             with self.journal.h5() as h5:
@@ -256,13 +228,14 @@ class XDMFWriter:
         key = (name, n)
         if key not in self._grids:
             ind, nn = "  ", self.nodes.num_nodes
-            vector = self.vector and name in ("displacement", "velocity")
+            vector = self.vector and name in ("displacement", "velocity", "Vbar_W")
+            centre, rows = ("Cell", self.nodes.num_cells) if name in self.cell_fields else ("Node", nn)
             text, tkey = time_key(n * self.dt)
             self._grids[key] = "\n".join([
                 f'{ind * 3}<Grid Name="{name}" GridType="Uniform">', f"{ind * 4}{_XINCLUDE}",
                 f'{ind * 4}<Time Value="{text}" />',
-                f'{ind * 4}<Attribute Name="{name}" AttributeType="{"Vector" if vector else "Scalar"}" Center="Node">',
-                f'{ind * 5}<DataItem Dimensions="{nn} {3 if vector else 1}" Format="HDF">'
+                f'{ind * 4}<Attribute Name="{name}" AttributeType="{"Vector" if vector else "Scalar"}" Center="{centre}">',
+                f'{ind * 5}<DataItem Dimensions="{rows} {3 if vector else 1}" Format="HDF">'
                 f'{self.h5name}:/Function/{name}/{tkey}</DataItem>',
                 f"{ind * 4}</Attribute>", f"{ind * 3}</Grid>"])
         return self._grids[key]

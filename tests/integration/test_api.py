@@ -57,7 +57,8 @@ def test_readme_api_example():
     assert u.function_space == result.discretisation.W
     centre = COMM.allreduce(float(np.max(u.x.array)), op=MPI.MAX)
     assert centre == pytest.approx(0.02, abs=1e-12)        # the boundary value is the largest
-    assert result.velocity().function_space == result.discretisation.W
+    assert result.velocity().function_space == result.discretisation.H      # P1+/P0: the physical one
+    assert result.vbar().function_space == result.discretisation.W
 
 
 def test_unknown_names_are_refused():
