@@ -77,6 +77,17 @@ def positive_float(text):
     return v
 
 
+def nonnegative_float(text):
+    """argparse type: a finite number >= 0."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not math.isfinite(v) or v < 0:
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0 (got {text})")
+    return v
+
+
 def positive_int(text):
     """argparse type: an integer >= 1."""
     try:

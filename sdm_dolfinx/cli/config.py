@@ -10,7 +10,7 @@ try:
 except ModuleNotFoundError:        # pragma: no cover
     import tomli as tomllib
 
-from sdm_dolfinx.cli.common import UsageError, folder_path, positive_float, positive_int
+from sdm_dolfinx.cli.common import UsageError, folder_path, nonnegative_float, positive_float, positive_int
 
 #: keys that are not options of the run parser
 SPECIAL_KEYS = ("problem", "problem-file")
@@ -91,7 +91,8 @@ def _config_value(path, action, key, value):
         except argparse.ArgumentTypeError as e:
             raise UsageError(f"{path}: key '{key}': {e}") from None
     numbers = {int: (int, "an integer"), positive_int: (int, "an integer"),
-               float: ((int, float), "a number"), positive_float: ((int, float), "a number")}
+               float: ((int, float), "a number"), positive_float: ((int, float), "a number"),
+               nonnegative_float: ((int, float), "a number")}
     if action.type in numbers:
         kinds, expected = numbers[action.type]
         if not isinstance(value, kinds) or isinstance(value, bool):

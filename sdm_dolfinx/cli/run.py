@@ -14,10 +14,11 @@ from pathlib import Path
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from sdm_dolfinx.cli.common import Parser, UsageError, folder_path, positive_float, positive_int, say_error
+from sdm_dolfinx.cli.common import (Parser, UsageError, folder_path, nonnegative_float, positive_float, positive_int,
+                                    say_error)
 from sdm_dolfinx.cli.config import load_config, read_toml
 from sdm_dolfinx.cli.params import add_param_options, param_values
-from sdm_dolfinx.method import quadrature, schemes
+from sdm_dolfinx.method import friction, quadrature, schemes
 from sdm_dolfinx.method.integrator import StepError
 from sdm_dolfinx.method.pairs import MASS_TREATMENTS, PAIRS
 from sdm_dolfinx.problems import ProblemInputError, get, load_file, spec_of_run
@@ -29,7 +30,7 @@ from sdm_dolfinx.solvers import LINEAR_STRATEGIES, VI_OPTIONS, VI_SOLVERS
 PROG = "python -m sdm_dolfinx"
 #: the parsed options that are run options of :func:`sdm_dolfinx.run.plan`
 RUN_OPTIONS = ("pair", "mass", "scheme", "dt", "T", "vi_solver", "linear", "write_every", "checkpoint_every",
-               "quadrature_degree")
+               "quadrature_degree", "friction", "mu", "tresca_threshold")
 
 PETSC_EPILOG = (
     "PETSc options of the step solver can be added as -sdm_<option>: -sdm_vi_rtol (default 1e-10, "
@@ -70,6 +71,14 @@ def add_run_options(p, defaults):
                         f"{quadrature.CURVED_DEGREE} on curved cells (the disc's P2 geometry: entries converged to "
                         f"round-off; default); {quadrature.ESTIMATED} = UFL's estimate everywhere (runs before this "
                         f"option); or an integer from 1 to {quadrature.MAX_DEGREE}")
+    f = p.add_argument_group("friction (2-D problems: the tangent is the other component than the constrained one)")
+    f.add_argument("--friction", choices=friction.LAWS, default=S,
+                   help=f"friction at the constrained vertices (default {defaults.get('friction') or 'none'}): "
+                        f"coulomb = |lam_T| <= mu lam_N; tresca = |lam_T| <= threshold x the vertex's boundary "
+                        f"measure at every constrained vertex, in contact or not (for a body in lasting contact)")
+    f.add_argument("--mu", type=nonnegative_float, default=S, help="Coulomb's friction coefficient (--friction coulomb)")
+    f.add_argument("--tresca-threshold", type=nonnegative_float, default=S, metavar="S",
+                   help="Tresca's threshold, a stress in the problem's units (--friction tresca)")
     o = p.add_argument_group("output")
     o.add_argument("--out", type=folder_path, default=None, help="output folder (default output/<problem>)")
     o.add_argument("--write-every", type=positive_int, default=S, metavar="K",
@@ -213,7 +222,7 @@ def make_plan(spec, args, command, comm):
 
 def _cli_words(msg):
     """Run-option names as the command line spells them."""
-    for k in ("write_every", "checkpoint_every", "vi_solver", "quadrature_degree", "dt", "T"):
+    for k in ("write_every", "checkpoint_every", "vi_solver", "quadrature_degree", "tresca_threshold", "dt", "T"):
         msg = msg.replace(f"{k} must", f"--{k.replace('_', '-')} must").replace(f"{k} (", f"--{k} (")
     return msg
 

@@ -23,9 +23,10 @@ import ufl
 from dolfinx import fem
 
 from sdm_dolfinx import compat
-from sdm_dolfinx.method import schemes
+from sdm_dolfinx.method import friction as _friction, schemes
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.solvers import VIError, choose_strategy, make_vi_solver, sparse_factor_matrix
+from sdm_dolfinx.solvers.friction import FrictionalNewton
 
 #: the registered time schemes' names (:mod:`sdm_dolfinx.method.schemes`)
 SCHEMES = schemes.names()
@@ -45,9 +46,13 @@ class Integrator:
         vi_solver: ``"ssn"`` (semi-smooth Newton, default), ``"vinewtonrsls"``, ``"vinewtonssls"``.
         linear: linear strategy of the semi-smooth Newton (see :mod:`sdm_dolfinx.solvers`).
         options: extra PETSc options for the step solver.
+        friction: a :class:`~sdm_dolfinx.method.friction.Friction` (None: frictionless); with
+            friction the step solver is :class:`~sdm_dolfinx.solvers.friction.FrictionalNewton`
+            (``vi_solver`` "ssn" only; ``linear`` does not apply: it factorises K once).
     """
 
-    def __init__(self, discretisation, scheme="midpoint", dt=1e-3, vi_solver="ssn", linear="auto", options=None):
+    def __init__(self, discretisation, scheme="midpoint", dt=1e-3, vi_solver="ssn", linear="auto", options=None,
+                 friction=None):
         self.time_scheme = schemes.get(scheme)
         self.discretisation, self.scheme, self.dt = discretisation, scheme, float(dt)
         self.time_dependent = discretisation.problem.time is not None
@@ -67,10 +72,31 @@ class Integrator:
                 and discretisation.B is not None and discretisation.c_lumped is not None):
             d = discretisation
             self.factor_matrix = sparse_factor_matrix(self.K, d.A, d.B, d.c_lumped, self.alpha, d.ddofs)
-        self.solver = make_vi_solver(vi_solver, self.K, discretisation.cdofs, discretisation.lb,
-                                     symmetric_positive=not self.block, linear=linear, options=options,
-                                     factor_matrix=self.factor_matrix)
+        self.friction = friction if friction is not None and friction.on else None
+        self.slip = self.lam_t_work = None
+        if self.friction is None:
+            self.solver = make_vi_solver(vi_solver, self.K, discretisation.cdofs, discretisation.lb,
+                                         symmetric_positive=not self.block, linear=linear, options=options,
+                                         factor_matrix=self.factor_matrix)
+        else:
+            self._friction_solver(vi_solver, options)
         self.vi_solver = vi_solver
+
+    def _friction_solver(self, vi_solver, options):
+        d, f = self.discretisation, self.friction
+        if vi_solver != "ssn":
+            raise DiscretisationError(f"friction {f.law} is solved by the semi-smooth Newton method (vi_solver "
+                                      f"'ssn'), not {vi_solver!r}")
+        try:
+            self.tdofs, thresholds = _friction.contact_dofs(d, f)
+        except ValueError as e:
+            raise DiscretisationError(str(e)) from None
+        if self.factor_matrix is None and not self.block and d.B is not None and d.c_lumped is not None:
+            self.factor_matrix = sparse_factor_matrix(self.K, d.A, d.B, d.c_lumped, self.alpha, d.ddofs)
+        self.solver = FrictionalNewton(self.K, d.cdofs, self.tdofs, d.lb, law=f.law, mu=f.mu, threshold=thresholds,
+                                       symmetric_positive=not self.block, options=options,
+                                       factor_matrix=self.factor_matrix)
+        self.slip = np.zeros(len(self.tdofs))
 
     def _build(self):
         d, a = self.discretisation, self.alpha
@@ -158,7 +184,10 @@ class Integrator:
         if self.block:
             X.array[nW:] = V.array
         try:
-            info = self.solver.solve(b, X)
+            if self.friction is None:
+                info = self.solver.solve(b, X)
+            else:
+                info = self.solver.solve(b, X, U.array[self.tdofs].copy())
         except VIError as e:
             raise StepError(f"step {n + 1} (t = {t + self.dt:.6g}): {e}") from None
         x = X.array[:nW]
@@ -171,9 +200,33 @@ class Integrator:
             V.array[:] = ts.velocity_block(X.array[nW:], V.array)
         else:
             V.array[:] = ts.velocity(x, Un, V.array, self.alpha)
+        if self.friction is not None:
+            self._friction_info(info, U.array, Un)
         info["gap_end"] = self.discretisation.comm.allreduce(
             float(np.min(U.array[d.cdofs] - d.lb, initial=np.inf)), op=MPI.MIN)
         return info
+
+    def _friction_info(self, info, u, un):
+        """The step's tangential force, slip (U^{n+1} - U^n at the tangential dofs) and friction
+        work lam_T . (U^{n+1} - U^n)_t (<= 0), reduced over the ranks, into ``info``."""
+        comm = self.discretisation.comm
+        self.slip = u[self.tdofs] - un[self.tdofs]
+        lam_t = self.solver.lam_t
+        force, work = comm.allreduce(np.array([np.sum(lam_t), np.dot(lam_t, self.slip)]), op=MPI.SUM)
+        info.update(tangential_force=float(force), friction_work=float(work))
+
+    @property
+    def lam_t(self):
+        """Tangential multipliers of the last step at the owned constrained vertices (friction; else 0)."""
+        return self.solver.lam_t if self.friction is not None else np.zeros(len(self.discretisation.cdofs))
+
+    @property
+    def contact_status(self):
+        """Per owned constrained vertex: 0 not in contact, 1 in contact and sticking (or without
+        friction), 2 in contact and slipping."""
+        active = np.asarray(self.active, dtype=bool)
+        slip = self.solver.slip if self.friction is not None else np.zeros_like(active)
+        return np.where(active, np.where(slip, 2.0, 1.0), 0.0)
 
     def initial_velocity(self, V):
         """The velocity unknown of this formulation from Vbar0 in W^h: Vbar0 itself, or (block

@@ -17,7 +17,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from sdm_dolfinx.method import quadrature, schemes
+from sdm_dolfinx.method import friction, quadrature, schemes
 from sdm_dolfinx.method.pairs import get_pair
 from sdm_dolfinx.problems import ProblemInputError, resolve, spec_of_run
 from sdm_dolfinx.run.folder import RunFolderError, check_out, read_info
@@ -27,7 +27,8 @@ from sdm_dolfinx.solvers import LINEAR_STRATEGIES, VI_SOLVERS
 
 #: the run options and their defaults where the problem declares none
 RUN_DEFAULTS = {"pair": "P1+/P0", "scheme": "midpoint", "dt": 1e-3, "T": 0.8, "mass": None, "vi_solver": "ssn",
-                "linear": "auto", "write_every": None, "checkpoint_every": None, "quadrature_degree": None}
+                "linear": "auto", "write_every": None, "checkpoint_every": None, "quadrature_degree": None,
+                "friction": None, "mu": None, "tresca_threshold": None}
 #: options a restart may change (the others are the run's)
 RESTART_MAY_CHANGE = ("checkpoint_every",)
 #: the longest run accepted (T / dt): ~100 bytes of time series per step in memory
@@ -161,6 +162,7 @@ def check_options(o):
     if o["linear"] not in LINEAR_STRATEGIES:
         errors.append(f"unknown linear strategy {o['linear']!r}; choose one of {', '.join(LINEAR_STRATEGIES)}")
     errors += quadrature.check(o["quadrature_degree"])
+    errors += friction.check(o["friction"], o["mu"], o["tresca_threshold"])
     if errors:
         raise RunInputError("; ".join(errors))
 

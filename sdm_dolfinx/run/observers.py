@@ -78,6 +78,11 @@ class ConstraintProbe:
         val = lam[self.index] / self.measure[self.index] if self.index >= 0 else 0.0
         return self.comm.allreduce(float(val), op=MPI.SUM)
 
+    def at(self, values):
+        """``values`` (one per owned constrained vertex) at the probe's vertex, on every rank."""
+        val = values[self.index] if self.index >= 0 else 0.0
+        return self.comm.allreduce(float(val), op=MPI.SUM)
+
 
 class CSVWriter:
     """timeseries.csv, one whole line per step written with one system call (rank 0).

@@ -11,6 +11,11 @@ from sdm_dolfinx.method.integrator import StepError
 #: the columns of every run's time series; a Problem adds its ``extra_columns``
 BASE_COLUMNS = ("step", "t", "energy", "kinetic", "potential", "u_probe", "lambda_probe", "n_active",
                 "newton_its")
+#: the columns of a run with friction (docs/outputs.md): the step's sum of the tangential
+#: multipliers, the slip U^{n+1} - U^n of the probe's constrained vertex along the tangent, the
+#: cumulative friction dissipation -sum_steps lam_T . (U^{n+1} - U^n)_t (>= 0), the numbers of
+#: sticking and slipping vertices (the step solver's sets)
+FRICTION_COLUMNS = ("tangential_force", "slip_probe", "dissipated", "n_stick", "n_slip")
 #: the column added when the constrained boundary has dofs: min over every dof of W^h on it (P2 mid-edge
 #: nodes included) of U_c - bound at the end of the step (the constraint (13) holds at vertices only)
 BOUNDARY_GAP = "gap_min_boundary"
@@ -41,7 +46,8 @@ class TimeSeries:
         self.integ, self.problem, self.probe, self.cprobe = integ, problem, probe, cprobe
         d = integ.discretisation
         boundary = (BOUNDARY_GAP,) if d.num_boundary_dofs else ()
-        self.columns = BASE_COLUMNS + tuple(problem.extra_columns) + boundary
+        friction = FRICTION_COLUMNS if integ.friction is not None else ()
+        self.columns = BASE_COLUMNS + tuple(problem.extra_columns) + friction + boundary
         self.data = {c: np.zeros(nsteps + 1) for c in self.columns}
         self.comm = problem.mesh.comm
         if boundary:
@@ -51,9 +57,10 @@ class TimeSeries:
             self.boundary_tol = BOUNDARY_GAP_TOL * float(np.linalg.norm(hi - lo))
         self.warned = False
 
-    def record(self, n, t, U, V, lam, its, n_active):
-        """Compute row ``n`` (time ``t``) from the state; returns it as a dict (with
-        ``linear_its_total``, the cumulative linear iterations, for observers)."""
+    def record(self, n, t, U, V, lam, its, n_active, step=None):
+        """Compute row ``n`` (time ``t``) from the state and the step solver's ``step`` info (None
+        for row 0); returns it as a dict (with ``linear_its_total``, the cumulative linear
+        iterations, for observers)."""
         integ, comm = self.integ, self.comm
         kin, pot = integ.energies(U, V, t)
         row = {"step": n, "t": t, "energy": kin + pot, "kinetic": kin, "potential": pot,
@@ -63,6 +70,10 @@ class TimeSeries:
             row["contact_force"] = comm.allreduce(float(np.sum(lam)), op=MPI.SUM)
         if "momentum_y" in self.columns:
             row["momentum_y"] = integ.momentum(V, self.problem.momentum_component)
+        if "momentum_x" in self.columns:
+            row["momentum_x"] = integ.momentum(V, 0)
+        if "tangential_force" in self.columns:
+            self._friction_row(row, n, step or {})
         if "elastic" in self.columns:            # 1/2 U^T A U = potential + U^T L
             row["elastic"] = pot + U.dot(integ.load(t))
         if BOUNDARY_GAP in self.columns:
@@ -74,6 +85,14 @@ class TimeSeries:
         for c in self.columns:
             self.data[c][n] = row[c]
         return row
+
+    def _friction_row(self, row, n, step):
+        """The friction columns of row ``n`` (0 in row 0; ``dissipated`` accumulates)."""
+        before = self.data["dissipated"][n - 1] if n > 0 else 0.0
+        row.update(tangential_force=step.get("tangential_force", 0.0),
+                   slip_probe=self.cprobe.at(self.integ.slip) if step else 0.0,
+                   dissipated=before - step.get("friction_work", 0.0),
+                   n_stick=step.get("n_stick", 0), n_slip=step.get("n_slip", 0))
 
     def _warn(self, n, t, U, gap):
         """A :class:`BoundaryGapWarning` on rank 0, once per run, when the constrained boundary sinks

@@ -15,6 +15,7 @@ from petsc4py import PETSc
 import numpy as np
 
 from sdm_dolfinx import compat
+from sdm_dolfinx.method import friction as _friction
 from sdm_dolfinx.method.discretisation import Discretisation
 from sdm_dolfinx.solvers import VIError
 from sdm_dolfinx.method.integrator import Integrator, StepError
@@ -35,7 +36,8 @@ class SolverSetupError(RuntimeError):
 def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=None, vi_solver="ssn",
              linear="auto", out=None, write_every=None, progress=False, petsc_options=None,
              extra_info=None, checkpoint_every=None, restart=False, handle_signals=False, on_step=None,
-             constraint_tol=1e-8, folder_seen=None, quadrature_degree=None):
+             constraint_tol=1e-8, folder_seen=None, quadrature_degree=None, friction=None, mu=None,
+             tresca_threshold=None):
     """Run ``problem`` with ``pair`` and ``scheme`` from t = 0 to T.
 
     Args:
@@ -47,6 +49,9 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
         quadrature_degree: quadrature degree of every form (None: UFL's exact estimate on affine
             simplices, 12 on curved cells; ``"estimated"``; an integer), see
             :mod:`sdm_dolfinx.method.quadrature`; the degree used is run.json's ``quadrature_degree``.
+        friction, mu, tresca_threshold: friction at the constrained vertices: ``None``/``"none"``,
+            ``"tresca"`` (``tresca_threshold``: a stress, times each vertex's lumped boundary
+            measure) or ``"coulomb"`` (coefficient ``mu``), see :mod:`sdm_dolfinx.method.friction`.
         vi_solver, linear, petsc_options: the step solver (see :mod:`sdm_dolfinx.solvers`).
         out: output folder (``timeseries.csv``, ``run.json``, ``solution.xdmf``) or None.
         write_every: XDMF output every K steps (default 10 when ``out`` is given).
@@ -79,11 +84,14 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
     wall0 = time.perf_counter()
     run_options = {"pair": pair if isinstance(pair, str) else pair.name, "scheme": scheme, "dt": dt, "T": T,
                    "mass": mass, "vi_solver": vi_solver, "linear": linear, "write_every": write_every,
-                   "checkpoint_every": checkpoint_every, "quadrature_degree": quadrature_degree}
+                   "checkpoint_every": checkpoint_every, "quadrature_degree": quadrature_degree,
+                   "friction": friction, "mu": mu, "tresca_threshold": tresca_threshold}
+    law = _friction.make(friction, mu, tresca_threshold)        # ValueError: options that do not agree
     stop = StopFlag(handle_signals)      # before anything is built or written
     loop = None
     try:
-        loop = _Loop(problem, pair, scheme, dt, T, mass, vi_solver, linear, petsc_options, wall0, quadrature_degree)
+        loop = _Loop(problem, pair, scheme, dt, T, mass, vi_solver, linear, petsc_options, wall0, quadrature_degree,
+                     law)
         signum = stop.agreed(loop.comm)
         if signum:
             raise Interrupted("interrupted during the set-up, before anything was written", signum)
@@ -100,11 +108,11 @@ class _Loop:
     """The state of one run between :func:`simulate`'s phases (set-up, files, steps, end)."""
 
     def __init__(self, problem, pair, scheme, dt, T, mass, vi_solver, linear, petsc_options, wall0,
-                 quadrature_degree=None):
+                 quadrature_degree=None, friction=None):
         self.wall0, self.dt, self.comm = wall0, dt, problem.mesh.comm
         self.discretisation = d = Discretisation(problem, pair, mass, quadrature_degree)
         try:
-            self.integ = Integrator(d, scheme, dt, vi_solver, linear, petsc_options)
+            self.integ = Integrator(d, scheme, dt, vi_solver, linear, petsc_options, friction)
         except (PETSc.Error, VIError) as e:  # e.g. a -sdm_ option PETSc (or the step solver) does not accept
             raise SolverSetupError(f"PETSc could not set up the step solver: {_petsc_message(e)}") from None
         self.nsteps = num_steps(T, dt)
@@ -119,7 +127,8 @@ class _Loop:
         self.fingerprint = checkpoint.mesh_fingerprint(problem.mesh)
         self.identity = {"problem": problem.describe(), "pair": d.pair.name, "mass": d.mass, "scheme": scheme,
                          "dt": dt, "vi_solver": vi_solver, "linear": linear, "ranks": self.comm.size,
-                         "mesh": self.fingerprint}
+                         "mesh": self.fingerprint,
+                         **({"friction": friction.describe()} if friction is not None and friction.on else {})}
         self.fields_of = {"U": (d.W, self.U), "V": (d.H if self.integ.block else d.W, self.V)}
         self.history = SolverHistory(self.integ)
         self.files = self.lock = None
@@ -156,8 +165,8 @@ class _Loop:
                 self._say_failed(e)
                 raise
 
-    def record(self, n, its, n_active):
-        row = self.series.record(n, n * self.dt, self.U, self.V, self.lam, its, n_active)
+    def record(self, n, its, n_active, step=None):
+        row = self.series.record(n, n * self.dt, self.U, self.V, self.lam, its, n_active, step)
         if self.files is not None:
             self.files.row(row)
         return row
@@ -206,7 +215,7 @@ class _Loop:
         if self.gap_imposed[n] < -tol:
             raise StepError(f"step {n + 1} (t = {(n + 1) * self.dt:.6g}): the constraint is violated by "
                             f"{-self.gap_imposed[n]:.3e} on the constrained iterate")
-        row = self.record(n + 1, info["its"], info["n_active"])
+        row = self.record(n + 1, info["its"], info["n_active"], info)
         if self.files is not None and self.files.due(n + 1, self.nsteps):
             self.files.fields(n + 1, self.U, self.V, self.lam)
         return row

@@ -82,7 +82,11 @@ class XDMFWriter:
         src = {"displacement": (self.uW, wdeg), "velocity": vel, "contact_stress": (self.s1, 1), "active": (self.a1, 1)}
         if self.vH is not None and self.vW is not None:
             src["Vbar_W"] = (self.vW, wdeg)
-        self.FIELDS = tuple(n for n in ("displacement", "velocity", "Vbar_W", "contact_stress", "active") if n in src)
+        self.friction = integrator.friction is not None
+        if self.friction:                           # lam_T / m_i and 0 free, 1 stick, 2 slip
+            src["tangential_stress"], src["contact_status"] = (fem.Function(d.Q1), 1), (fem.Function(d.Q1), 1)
+        self.FIELDS = tuple(n for n in ("displacement", "velocity", "Vbar_W", "contact_stress", "active",
+                                        "tangential_stress", "contact_status") if n in src)
         self.src = {n: f for n, (f, _) in src.items()}
         self.cell_fields = {n for n, (_, k) in src.items() if k == 0}
         self.out = {n: self._route(f, k) for n, (f, k) in src.items() if k != 0}
@@ -141,8 +145,13 @@ class XDMFWriter:
         for f in (self.uW, self.vH, self.vW):
             if f is not None:
                 f.x.scatter_forward()
-        for f, vals in ((self.s1, lam / np.where(d.cmeasure > 0, d.cmeasure, 1.0)),
-                        (self.a1, active.astype(float))):
+        measure = np.where(d.cmeasure > 0, d.cmeasure, 1.0)
+        vertex = [(self.s1, lam / measure), (self.a1, active.astype(float))]
+        if self.friction:
+            slip = np.asarray(self.integ.solver.slip, dtype=bool)
+            vertex += [(self.src["tangential_stress"], self.integ.lam_t / measure),
+                       (self.src["contact_status"], np.where(active, np.where(slip, 2.0, 1.0), 0.0))]
+        for f, vals in vertex:
             f.x.array[:] = 0.0
             f.x.array[d.q1_of_c] = vals
             vec = compat.petsc_vec(f)

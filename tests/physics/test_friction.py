@@ -1,0 +1,170 @@
+"""Friction in the singular dynamic method (issue 17): identities that hold at every step, on a
+plane-strain block sliding on the foundation y = 0 (1 and 2 ranks).
+
+* the discrete Coulomb cone |lam_T,i| <= mu lam_N,i (Tresca: <= s m_i) at every vertex, stick
+  vertices without slip, slip vertices with a full-size lam_T opposing their slip;
+* the horizontal momentum balance P^{n+1} - P^n = dt (F_x + sum lam_T) exactly (the midpoint
+  scheme with a rigid e_x: eT A = 0, see method/friction.py);
+* energy: E^{n+1} - E^n = lam . (U^{n+1} - U^n) (midpoint), whose tangential part is the
+  friction work <= 0: with the bottom resting on the foundation the normal part vanishes and
+  E + dissipated is conserved to round-off;
+* mu = 0 is the frictionless run to round-off; friction options that do not agree are refused.
+"""
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import numpy as np
+import pytest
+import ufl
+from dolfinx import fem, mesh as dmesh
+
+from sdm_dolfinx.method.discretisation import Discretisation
+from sdm_dolfinx.method.friction import make
+from sdm_dolfinx.method.integrator import Integrator
+from sdm_dolfinx.problems import Problem
+from sdm_dolfinx.run import simulate
+
+COMM = MPI.COMM_WORLD
+G = 9810.0
+RHO = 1e-6
+
+
+def resting_block(width=20.0, height=10.0, n=10, E=1000.0, nu=0.3, v0=100.0, g=(0.0, -G), comm=COMM,
+                  equilibrium=True):
+    """A block on the foundation y = 0 sliding at v0 along x, its bottom there: at rest under
+    gravity with u_y = 0 at the bottom vertices (``equilibrium``: the P2 static solution, so the
+    contact does not oscillate), or unstressed."""
+    msh = dmesh.create_rectangle(comm, [np.array([0.0, 0.0]), np.array([width, height])],
+                                 [n, max(1, round(n * height / width))], dmesh.CellType.triangle)
+    fdim = msh.topology.dim - 1
+    bottom = lambda x: np.isclose(x[1], 0.0)
+    facets = np.sort(dmesh.locate_entities_boundary(msh, fdim, bottom)).astype(np.int32)
+    ds_c = ufl.Measure("ds", domain=msh, subdomain_data=dmesh.meshtags(msh, fdim, facets, np.ones_like(facets)))(1)
+    mu, lmbda = E / (2 * (1 + nu)), E * nu / ((1 + nu) * (1 - 2 * nu))
+    eps = lambda u: ufl.sym(ufl.grad(u))
+    sigma = lambda u: lmbda * ufl.tr(eps(u)) * ufl.Identity(2) + 2 * mu * eps(u)
+    gv = fem.Constant(msh, PETSc.ScalarType(g))
+    u0 = _static(msh, sigma, eps, gv, bottom) if equilibrium else (lambda x: np.zeros((2, x.shape[1])))
+    return Problem(
+        name="resting_block", mesh=msh, shape=(2,), rho=RHO,
+        a=lambda u, w: ufl.inner(sigma(u), eps(w)) * ufl.dx,
+        l=lambda w: RHO * ufl.inner(gv, w) * ufl.dx,
+        u0=u0, v0=lambda x: np.vstack([np.full(x.shape[1], v0), np.zeros(x.shape[1])]),
+        constraint_vertices=lambda m: dmesh.locate_entities_boundary(m, 0, bottom),
+        lower_bound=lambda x: np.zeros(x.shape[1]), constraint_component=1,
+        constraint_measure=lambda q: q * ds_c, probe=(width / 2, 0.0),
+        extra_columns=("contact_force", "momentum_x", "momentum_y"),
+        parameters={"lame_lambda": lmbda, "lame_mu": mu})
+
+
+def _static(msh, sigma, eps, gv, bottom):
+    """The P2 static displacement under gravity with u_y = 0 at the bottom vertices (the run's
+    constraint, bilateral) and u_x = 0 at the bottom-left vertex (the rigid translation)."""
+    from dolfinx.fem.petsc import LinearProblem
+    from sdm_dolfinx import compat
+    V = compat.function_space(msh, compat.element("Lagrange", compat.cell_name(msh), 2, (2,)))
+    u, w = ufl.TrialFunction(V), ufl.TestFunction(V)
+    verts = dmesh.locate_entities_boundary(msh, 0, bottom)
+    corner = dmesh.locate_entities_boundary(msh, 0, lambda x: np.isclose(x[0], 0.0) & np.isclose(x[1], 0.0))
+    zero = PETSc.ScalarType(0.0)
+    bcs = [fem.dirichletbc(zero, fem.locate_dofs_topological(V.sub(1), 0, verts), V.sub(1)),
+           fem.dirichletbc(zero, fem.locate_dofs_topological(V.sub(0), 0, corner), V.sub(0))]
+    return LinearProblem(ufl.inner(sigma(u), eps(w)) * ufl.dx, RHO * ufl.inner(gv, w) * ufl.dx, bcs=bcs,
+                         petsc_options={"ksp_type": "preonly", "pc_type": "lu"}).solve()
+
+
+def _steps(problem, friction, pair="P2/P1", scheme="midpoint", dt=2e-5, n=60):
+    """Step an Integrator by hand; per step the solver's sets and multipliers, checked by the caller."""
+    d = Discretisation(problem, pair)
+    integ = Integrator(d, scheme, dt, friction=friction)
+    U, V = d.initial_state()
+    V = integ.initial_velocity(V)
+    for k in range(n):
+        Un = U.array.copy()
+        info = integ.step(U, V, k, k * dt)
+        yield d, integ, info, U.array - Un
+    integ.destroy()
+
+
+@pytest.mark.parametrize("law", ["coulomb", "tresca"])
+def test_cone_stick_and_slip_at_every_step(law):
+    """Every step: |lam_T| <= bound (1e-9 relative to the largest multiplier), stick => no slip
+    (1e-9 of the step's largest slip), slip => lam_T = -bound sign(slip) (1e-9)."""
+    mu, s = 0.3, 0.03
+    f = make(law, mu=mu if law == "coulomb" else None, threshold=s if law == "tresca" else None)
+    worst = np.zeros(3)
+    n_slip = 0
+    for d, integ, info, du in _steps(resting_block(), f):
+        solver = integ.solver
+        lam_n, lam_t, slip = solver.lam, solver.lam_t, du[integ.tdofs]
+        bound = mu * lam_n if law == "coulomb" else s * d.cmeasure
+        scale = max(COMM.allreduce(float(np.abs(np.r_[lam_n, lam_t, 1e-300]).max()), op=MPI.MAX), 1e-300)
+        dscale = max(COMM.allreduce(float(np.abs(np.r_[slip, 0.0]).max()), op=MPI.MAX), 1e-300)
+        st, sl = solver.stick & solver.active if law == "coulomb" else solver.stick, solver.slip
+        worst = np.maximum(worst, [np.max(np.abs(lam_t) - bound, initial=0.0) / scale,
+                                   np.max(np.abs(slip[st]), initial=0.0) / dscale,
+                                   np.max(np.abs(lam_t[sl] + bound[sl] * np.sign(slip[sl])), initial=0.0) / scale])
+        n_slip += info["n_slip"]
+    COMM.Allreduce(MPI.IN_PLACE, worst, op=MPI.MAX)
+    assert np.all(worst < 1e-9), worst
+    assert n_slip > 0                                # the block slides: the slip branch is tested
+
+
+@pytest.mark.parametrize("law", ["coulomb", "tresca"])
+def test_momentum_and_energy_balance(law):
+    """Midpoint, the block resting on the floor and sliding: P_x^{n+1} - P_x^n = dt sum lam_T
+    (no horizontal load) to 1e-10 of |P_x|; E^{n+1} - E^n = friction work <= 0 while every bottom
+    vertex has stayed in contact (the first 19 to 30 steps here; then the rear corner lifts off for a
+    while), and E + dissipated is conserved to 1e-12 of E^0 (measured: 5e-14)."""
+    f = make(law, mu=0.3 if law == "coulomb" else None, threshold=0.03 if law == "tresca" else None)
+    dt, n = 2e-5, 60
+    r = simulate(resting_block(), pair="P2/P1", dt=dt, T=n * dt, friction=law, mu=f.mu, tresca_threshold=f.threshold)
+    ts = r.timeseries
+    px = ts["momentum_x"]
+    assert np.abs(np.diff(px) - dt * ts["tangential_force"][1:]).max() < 1e-10 * np.abs(px).max()
+    assert px[-1] < px[0] and np.all(np.diff(ts["dissipated"]) >= -1e-15 * ts["energy"][0])
+    # sustained contact: every bottom vertex in contact at every step so far (a vertex that
+    # leaves and comes back carries U^n_n != bound, and the normal contact does work after it)
+    sustained = np.cumprod(ts["n_active"][1:] == r.info["N_g"]).astype(bool)
+    assert sustained.sum() >= 15
+    total = ts["energy"] + ts["dissipated"]
+    jumps = np.abs(np.diff(total))[sustained] / ts["energy"][0]
+    assert jumps.max() < 1e-12, jumps.max()
+    assert ts["dissipated"][-1] > 1e-3 * ts["energy"][0]          # friction did dissipate
+
+
+def test_zero_friction_coefficient_is_the_frictionless_run():
+    dt, n = 2e-5, 40
+    a = simulate(resting_block(), pair="P2/P1", dt=dt, T=n * dt)
+    b = simulate(resting_block(), pair="P2/P1", dt=dt, T=n * dt, friction="coulomb", mu=0.0)
+    p = np.abs(a.timeseries["momentum_x"]).max()            # momentum_y is ~0: the momentum scale
+    for c in ("energy", "u_probe", "contact_force", "momentum_x", "momentum_y"):
+        scale = p if c.startswith("momentum") else max(np.abs(a.timeseries[c]).max(), 1e-300)
+        assert np.abs(a.timeseries[c] - b.timeseries[c]).max() < 1e-10 * scale, c
+    assert np.all(b.timeseries["tangential_force"] == 0.0)
+
+
+@pytest.mark.parametrize("opts, message", [
+    ({"friction": "coulomb"}, "friction coulomb needs mu"),
+    ({"friction": "tresca", "mu": 0.3}, "mu is for friction coulomb"),
+    ({"friction": "coulomb", "mu": -1.0}, "mu must be a number >= 0"),
+    ({"friction": "stiction", "mu": 0.3}, "unknown friction law"),
+])
+def test_friction_options_that_do_not_agree_are_refused(opts, message):
+    with pytest.raises(ValueError, match=message):
+        simulate(resting_block(n=2), pair="P2/P1", dt=1e-5, T=1e-5, **opts)
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("law", ["coulomb", "tresca"])
+def test_one_and_all_ranks_agree(law):
+    """The run on every rank (COMM_WORLD) against the same run on each rank alone (COMM_SELF): the
+    time series agree to 1e-9 of each column's scale (2 ranks: the partition changes only the
+    rounding; 1 rank: identical)."""
+    kw = {"mu": 0.3} if law == "coulomb" else {"tresca_threshold": 0.03}
+    dt, n = 2e-5, 40
+    ref = simulate(resting_block(comm=MPI.COMM_SELF), pair="P2/P1", dt=dt, T=n * dt, friction=law, **kw)
+    run = simulate(resting_block(), pair="P2/P1", dt=dt, T=n * dt, friction=law, **kw)
+    for c in ("energy", "contact_force", "tangential_force", "momentum_x", "dissipated", "slip_probe", "n_slip"):
+        a, b = ref.timeseries[c], run.timeseries[c]
+        assert np.abs(a - b).max() <= 1e-9 * max(np.abs(a).max(), 1e-300), c
