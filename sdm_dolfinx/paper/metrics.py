@@ -1,9 +1,9 @@
 """The numbers behind the verdicts: a run's time series and what is measured on it, the
-counting condition of (7), the disc's H¹ convergence (Fig. 16, Table 2) and the energy
-recomputed from the stored fields; with the few helpers that put numbers into sentences.
+counting condition of (7), the rates of the disc's H¹ convergence (Fig. 16; the errors of
+Table 2 are :mod:`.table2`'s) and the energy recomputed from the stored fields; with the few
+helpers that put numbers into sentences.
 """
 import math
-import time
 from pathlib import Path
 
 from mpi4py import MPI
@@ -13,7 +13,6 @@ import numpy as np
 from sdm_dolfinx import compat, post
 from sdm_dolfinx.paper.runs import read_run_info
 from sdm_dolfinx.paper.study import MEMBRANE_PAIRS, PAPER_TABLE2
-from sdm_dolfinx.problems.disc_mesh import LEVELS
 
 COMM = MPI.COMM_WORLD
 
@@ -126,45 +125,7 @@ def counts_ok(pair, N):
     return h <= room
 
 
-# ------------------------------------------------------------- the disc's convergence
-def disc_convergence(study, runs_dir, comm=COMM, say=print):
-    """Fig. 16 and Table 2: relative H1 errors at t = T against the finest level (collective)."""
-    from dolfinx import fem
-    levels = sorted(study.conv)
-    ref_level = levels[-1]
-    ref_folder = runs_dir / study.conv[ref_level].name
-    info_r, _, W_r, Vs_r = post.rebuild(ref_folder, comm)
-    reader = post.StateReader(ref_folder, W_r, Vs_r, comm)
-    u_ref, _ = reader.read(len(reader) - 1)
-    T_ref = float(reader.t[-1])
-    errors, semi, metres, dofs, info = {}, {}, {}, {}, {}
-    for lev in levels:
-        folder = runs_dir / study.conv[lev].name
-        info[lev] = post.read_info(folder, comm)
-        dofs[lev] = int(info[lev]["dim_W"])
-        if lev == ref_level:
-            continue
-        t0 = time.perf_counter()
-        inf, _, W, Vs = post.rebuild(folder, comm)
-        rd = post.StateReader(folder, W, Vs, comm)
-        if abs(float(rd.t[-1]) - T_ref) > 1e-9 or int(rd.steps[-1]) != int(inf["steps"]):
-            raise post.PostprocessError(f"{folder}: last stored state is not the final time {T_ref}")
-        u_c, _ = rd.read(len(rd) - 1)
-        u_on_ref = fem.Function(W_r)
-        post.interpolate_nonmatching(u_on_ref, u_c, padding=0.1 * LEVELS[lev])
-        errors[lev] = post.h1_error(u_on_ref, u_ref)
-        semi[lev] = post.h1_error(u_on_ref, u_ref, seminorm=True)
-        metres[lev] = post.h1_error(u_on_ref, u_ref, l2_weight=1e-6)     # the norm with lengths in m
-        say(f"    level {lev}: relative H1 error {100 * errors[lev]:.3g} % against level {ref_level} "
-            f"({time.perf_counter() - t0:.1f} s)")
-    rates = fit_rates(levels, ref_level, errors, semi, dofs)
-    rates["rate_metres"] = fit_rates(levels, ref_level, metres, semi, dofs)["rate"]
-    return {"levels": levels, "reference_level": ref_level, "errors": errors, "seminorm_errors": semi,
-            "errors_in_metres": metres, "dofs": dofs, **rates,
-            "dt": {lev: study.conv[lev].options["dt"] for lev in levels},
-            "wall_time": {lev: info[lev].get("wall_time") for lev in levels}}
-
-
+# ------------------------------------------------------- the disc's convergence rates
 def fit_rates(levels, ref_level, errors, semi, dofs):
     """Convergence rates of the H1 errors against the nominal h of Table 2 (h halves per level).
 
@@ -179,24 +140,6 @@ def fit_rates(levels, ref_level, errors, semi, dofs):
             "rate_all_levels": post.convergence_rate([h[x] for x in coarse], [errors[x] for x in coarse]),
             "rate_from_dofs": -2 * post.convergence_rate([dofs[x] for x in coarse], [errors[x] for x in coarse]),
             "rate_seminorm": post.convergence_rate([h[x] for x in fit], [semi[x] for x in fit])}
-
-
-def table2(study, conv):
-    """Table 2: our levels, time steps, dofs and errors next to the paper's."""
-    rows = []
-    for lev in conv["levels"]:
-        pdt, ph, pdofs, perr = PAPER_TABLE2[lev]
-        err = conv["errors"].get(lev)
-        rows.append({"level": lev, "dt": conv["dt"][lev], "paper_dt": pdt, "h_gmsh": LEVELS[lev], "paper_h": ph,
-                     "dofs": conv["dofs"][lev], "paper_dofs": pdofs,
-                     "error_pct": None if err is None else 100 * err, "paper_error_pct": perr,
-                     "wall_time_s": conv["wall_time"][lev]})
-    match = all(abs(r["dofs"] - r["paper_dofs"]) <= 0.02 * r["paper_dofs"] for r in rows)
-    text = (f"Ours: levels {listing(str(r['level']) for r in rows)} with the paper's time steps; dofs "
-            f"{listing(str(r['dofs']) for r in rows)} against {listing(str(r['paper_dofs']) for r in rows)} "
-            f"({'all within 2 %' if match else 'not all within 2 %'}); errors in the table are against our finest "
-            f"level {conv['reference_level']}. " + verdict(match))
-    return {"key": "table2", "rows": rows, "ours": text}
 
 
 # ------------------------------------------------------------------------ energy checks

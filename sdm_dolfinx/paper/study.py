@@ -8,7 +8,9 @@ files that ``python -m sdm_dolfinx PROBLEM --config FILE`` reads.
 """
 import json
 import math
+import os
 from dataclasses import dataclass, field
+from pathlib import Path
 
 from sdm_dolfinx import problems
 from sdm_dolfinx.problems.disc_mesh import LEVEL_DOFS, LEVELS
@@ -25,6 +27,16 @@ WELL_POSED = {"P1+/P0": True, "P1/P0": False, "P1/P1": False, "P1+/P1": True, "P
 PAPER_TABLE2 = {1: (8e-4, 2.0, 622, 5.86), 2: (4e-4, 1.0, 2782, 4.41), 3: (2e-4, 0.5, 11306, 2.57),
                 4: (1e-4, 0.25, 45706, 1.42), 5: (5e-5, 0.14, 126892, 0.43), 6: (2.5e-5, 0.07, 511386, None)}
 PAPER_RATE = 0.69
+#: the final time of the disc runs in the paper's program (its ``.param`` file: T = 0.02)
+PAPER_T = 0.02
+#: the paper's own meshes (GetFEM's ``tests/meshes``): Table 2 row -> file; rows 5 and 6
+#: (``disc_P2_h0_3``, ``disc_P2_h0.075``) are not available: our gmsh levels 5 and 6 stand in
+PAPER_MESHES = {1: "disc_P2_h4.mesh", 2: "disc_P2_h2.mesh", 3: "disc_P2_h1.mesh", 4: "disc_P2_h0_5.mesh"}
+#: where the paper's meshes are looked for, in this order (the first folder holding them wins):
+#: ``$SDM_GETFEM_MESHES``, then ``../shared/data/getfem-disc-meshes`` beside the repository (they
+#: are GetFEM's, LGPL: not copied into this project; docs/disc_meshes.md says where to get them)
+PAPER_MESH_DIRS = (os.environ.get("SDM_GETFEM_MESHES"),
+                   Path(__file__).resolve().parents[2].parent / "shared" / "data" / "getfem-disc-meshes")
 
 #: the paper's program (GetFEM): the "regular simplices" mesh of the unit square, which is
 #: dolfinx's left_right diagonal pattern, and the midpoint scheme applied to the (U, V) system
@@ -32,6 +44,33 @@ PAPER_RATE = 0.69
 MEMBRANE_DIAGONAL = "left_right"
 #: run options written before the problem's parameters in a TOML file (the rest after them)
 _HEAD_OPTIONS = ("pair", "mass", "scheme")
+
+
+def getfem_steps(T, dt):
+    """The number of steps the paper's program takes to reach ``T``: GetFEM's
+    ``mixed_dynamic_friction.cc`` runs ``t = 0; while (t <= T) { step; t += dt; }`` in double
+    precision, so one step past T whenever the accumulated t falls just short of T: for
+    T = 0.02, dt = 8e-4, 4e-4, 2e-4, 1e-4 give 26, 51, 101, 201 steps (t = 0.0208 ... 0.0201),
+    dt = 5e-5 and 2.5e-5 exactly 400 and 800 (the sum overshoots 0.02 by round-off).
+
+    Raises:
+        ValueError: ``dt`` or ``T`` not positive and finite, or more than 1e7 steps.
+    """
+    if not (0 < dt < math.inf and 0 < T < math.inf) or T / dt > 1e7:
+        raise ValueError(f"getfem_steps needs 0 < dt, T < inf and T / dt <= 1e7 (got T = {T!r}, dt = {dt!r})")
+    t, n = 0.0, 0
+    while t <= T:
+        t += dt
+        n += 1
+    return n
+
+
+def paper_mesh_dir(dirs=PAPER_MESH_DIRS):
+    """The first folder of ``dirs`` holding every file of :data:`PAPER_MESHES`, or None."""
+    for d in dirs:
+        if d and all((Path(d) / f).is_file() for f in PAPER_MESHES.values()):
+            return Path(d)
+    return None
 
 
 def slug(pair):
@@ -87,6 +126,9 @@ class Run:
     def dim(self):
         """dim W^h (for the cost estimate)."""
         if self.problem == "disc":
+            if "mesh_file" in self.params:             # one of the paper's meshes
+                row = {f: r for r, f in PAPER_MESHES.items()}.get(Path(self.params["mesh_file"]).name, 1)
+                return PAPER_TABLE2[row][2]
             lev = self.params["level"]
             return LEVEL_DOFS.get(lev, 4 * LEVEL_DOFS[6] * 4 ** (lev - 6))
         n = self.params["N"]
@@ -118,6 +160,15 @@ def _write_every(steps, states=100):
     return max(1, steps // states)
 
 
+def _divisor_every(steps, states):
+    """The largest divisor of ``steps`` at most ``steps // states``: about ``states`` stored
+    states, one of them at step ``steps`` exactly."""
+    k = max(1, steps // states)
+    while steps % k:
+        k -= 1
+    return k
+
+
 def _mass(pair):
     """The paper's program uses the consistent C of a P1 velocity (P1+/P1, P2/P1)."""
     return {"mass": "consistent"} if pair.endswith("/P1") and not pair.startswith("P1/") else {}
@@ -132,12 +183,28 @@ def membrane_run(pair, N, dt, T, scheme="midpoint", write_every=None):
                {"pair": pair, **_mass(pair), "scheme": scheme, "dt": float(dt), "T": float(T), "write_every": k})
 
 
-def disc_run(pair, level, dt, T=0.02, write_every=None):
-    """The falling disc on the mesh ``level`` (Table 2)."""
+def disc_run(pair, level, dt, T=0.02, write_every=None, mesh_file=None):
+    """The falling disc on our gmsh mesh ``level`` or, given ``mesh_file``, on that mesh (one
+    of the paper's GetFEM meshes; ``level`` is then unused)."""
     k = write_every or _write_every(num_steps(T, dt))
-    name = f"disc_{slug(pair)}_L{level}_dt{dt:.6g}_T{T:g}_w{k}"
-    return Run(name, "disc", {"level": level},
+    if mesh_file is None:
+        mesh, params = f"L{level}", {"level": level}
+    else:
+        mesh, params = "getfem-" + Path(mesh_file).stem.replace("disc_P2_", ""), {"mesh_file": str(mesh_file)}
+    name = f"disc_{slug(pair)}_{mesh}_dt{dt:.6g}_T{T:g}_w{k}"
+    return Run(name, "disc", params,
                {"pair": pair, **_mass(pair), "scheme": "midpoint", "dt": float(dt), "T": float(T), "write_every": k})
+
+
+def conv_run(row, mesh_file=None):
+    """Table 2's row ``row`` (P2/P1, dt = 8e-4 / 2^(row - 1)) on gmsh level ``row`` or on
+    ``mesh_file``, run for the paper program's step count (:func:`getfem_steps`: one step past
+    t = 0.02 for rows 1-4) with the state at t = 0.02 (step ``num_steps(0.02, dt)``) stored
+    too, so that one run gives both conventions of Table 2."""
+    dt = 8e-4 / 2 ** (row - 1)
+    n, n02 = getfem_steps(PAPER_T, dt), num_steps(PAPER_T, dt)
+    T = float(f"{n * dt:.12g}")                   # 0.0208, not 0.020800000000000003: still n steps
+    return disc_run("P2/P1", row, dt, T, write_every=_divisor_every(n02, 20), mesh_file=mesh_file)
 
 
 # -------------------------------------------------------------------------------- study
@@ -153,7 +220,9 @@ class Study:
     fig11: dict = field(default_factory=dict)       # pair -> {N: {ratio: Run}}
     fig1: Run = None
     disc: dict = field(default_factory=dict)        # pair -> {dt: Run} (level 1)
-    conv: dict = field(default_factory=dict)        # level -> Run
+    conv: dict = field(default_factory=dict)        # level -> Run (gmsh meshes; the finest is the reference)
+    conv_getfem: dict = field(default_factory=dict)  # Table 2 row -> Run on the paper's own mesh (rows 1-4)
+    getfem_mesh_dir: Path = None                     # where the paper's meshes were found (None: not found)
     conv_levels_shown: tuple = ()
 
     def runs(self):
@@ -169,6 +238,8 @@ class Study:
             for r in d.values():
                 seen.setdefault(r.name, r)
         for lev in sorted(self.conv):
+            if lev in self.conv_getfem:
+                seen.setdefault(self.conv_getfem[lev].name, self.conv_getfem[lev])
             seen.setdefault(self.conv[lev].name, self.conv[lev])
         return list(seen.values())
 
@@ -197,8 +268,10 @@ def make_study(quick=False, disc_max_level=None):
     if top not in LEVELS or top < 2:
         raise ValueError(f"--disc-max-level must be one of {', '.join(map(str, sorted(LEVELS)[1:]))}")
     for lev in range(1, top + 1):
-        dt = 8e-4 / 2 ** (lev - 1)
-        s.conv[lev] = disc_run("P2/P1", lev, dt, write_every=_write_every(num_steps(0.02, dt), 20))
+        s.conv[lev] = conv_run(lev)
+    s.getfem_mesh_dir = paper_mesh_dir()
+    if s.getfem_mesh_dir is not None:                 # the paper's meshes, on the rows below the reference
+        s.conv_getfem = {row: conv_run(row, s.getfem_mesh_dir / f) for row, f in PAPER_MESHES.items() if row < top}
     # the paper shows three solutions a factor 4 apart in dt (levels 2, 4, 6 of Table 2)
     s.conv_levels_shown = (top - 4, top - 2, top) if top >= 5 else tuple(range(1, top + 1))
     return s
@@ -265,5 +338,9 @@ def paper_configurations(study=None):
         dt, h, dofs = PAPER_TABLE2[lev][:3]
         put(f"disc_table2_level{lev}", run,
             f"Table 2, line {lev} (Fig. 16): P2/P1, consistent C, midpoint, h = {h:g} mm ({dofs} dofs in the paper), "
-            f"dt = {dt:g} s")
+            f"dt = {dt:g} s, {run.steps} steps as the paper's program ran them"
+            + (f" (to t = {run.options['T']:g} s; the state at t = 0.02 s is stored too)"
+               if run.steps != num_steps(PAPER_T, dt) else ""))
+    # the runs on the paper's own meshes (s.conv_getfem) are not written: their mesh files are not
+    # part of the repository, and a configuration naming this machine's folder would not be portable
     return out
