@@ -22,6 +22,11 @@ from mpi4py import MPI
 import numpy as np
 
 
+#: the time-series columns a Problem may add (``extra_columns``): sum of the normal multipliers,
+#: e_x^T M Vbar, the momentum along ``momentum_component``, 1/2 U^T A U
+EXTRA_COLUMNS = ("contact_force", "momentum_x", "momentum_y", "elastic")
+
+
 @dataclass
 class Problem:
     """A problem  M u'' + A u ∈ L − N_K(u)  in the sense of the paper's eq. (1)–(2).
@@ -48,8 +53,8 @@ class Problem:
             data is not supported (a run whose ``dirichlet_value`` changes stops with an error).
         probe: the point (x, y) where the displacement (and, at the nearest constrained
             vertex, the contact stress) is recorded.
-        extra_columns: additional time-series columns among ``contact_force``,
-            ``momentum_y``, ``elastic`` (1/2 U^T A U).
+        extra_columns: additional time-series columns among :data:`EXTRA_COLUMNS`:
+            ``contact_force``, ``momentum_x``, ``momentum_y``, ``elastic`` (1/2 U^T A U).
         parameters: physical parameters for ``run.json``; ``units`` their units.
         momentum_component: for ``momentum_y``: the component index used.
         args: the declared parameter values it was built from (set by
@@ -115,6 +120,10 @@ class Problem:
         elif comp not in (None, 0):
             raise ProblemInputError(f"problem {self.name!r}: a scalar problem has no component {comp!r}; "
                                     f"leave constraint_component at None")
+        unknown = [c for c in self.extra_columns if c not in EXTRA_COLUMNS]
+        if unknown:
+            raise ProblemInputError(f"problem {self.name!r}: unknown extra_columns {', '.join(map(repr, unknown))}; "
+                                    f"choose among {', '.join(EXTRA_COLUMNS)}")
         if self.time is not None and np.shape(getattr(self.time, "value", None)) != ():
             raise ProblemInputError(f"problem {self.name!r}: time must be a scalar fem.Constant used by l(w) "
                                     f"(got {type(self.time).__name__})")

@@ -1,13 +1,21 @@
 """A plane-strain elastic disc falling on a flat rigid foundation (paper section 5).
 
-Linear elasticity (Lamé lambda, mu) in plane strain, density rho, gravity g downward,
-frictionless unilateral contact (19) with the foundation y = 0 at the boundary vertices
-of the potential contact zone. Units: mm, N, s, tonne (so stresses in N/mm^2 = MPa,
-densities in t/mm^3, energies in N mm = mJ, all per mm of thickness). Defaults are those
-of the paper's original program (Figures 14-16, Table 2): radius 20 mm, point A (the
-lowest point) 10 mm above the foundation, rho = 1e-6 t/mm^3, lambda = 300 N/mm^2,
+Linear elasticity (Lamé lambda, mu) in plane strain, density rho, gravity g downward (or
+inclined: below), frictionless unilateral contact (19) with the foundation y = 0 at the
+boundary vertices of the potential contact zone. Units: mm, N, s, tonne (so stresses in
+N/mm^2 = MPa, densities in t/mm^3, energies in N mm = mJ, all per mm of thickness). Defaults
+are those of the paper's original program (Figures 14-16, Table 2): radius 20 mm, point A
+(the lowest point) 10 mm above the foundation, rho = 1e-6 t/mm^3, lambda = 300 N/mm^2,
 mu = 150 N/mm^2, g = 9810 mm/s^2, initial velocity -1000 mm/s, T = 0.02 s. (Table 1 of
 the paper mixes units; these are the consistent values.)
+
+An inclined foundation (--gravity-angle THETA, degrees): gravity g (sin THETA, -cos THETA),
+the disc on a foundation inclined at THETA seen in the foundation's frame (x down the
+slope). With --height 0 --v0 0 it starts at rest just touching. A rigid disc (I = m R^2/2)
+rolls without slipping when the friction coefficient mu >= tan(THETA)/3, its centre
+accelerating at (2/3) g sin THETA; it slides when mu < tan(THETA)/3, its centre at
+g (sin THETA - mu cos THETA), spinning up at 2 mu g cos THETA / R; frictionless: g sin THETA
+(see incline_motion). --vx0 adds a horizontal initial velocity (an oblique impact).
 """
 from pathlib import Path
 
@@ -33,8 +41,12 @@ UNITS = {"level": "-", "h": "mm (gmsh mesh size)",
          "mesh_file": "- (gmsh .msh or GetFEM .mesh file in mm, read instead of generating)",
          "radius": "mm", "centre": "mm",
          "height": "mm (initial height of the lowest point A above the foundation y = 0)",
-         "rho": "t/mm^3", "lame_lambda": "N/mm^2", "lame_mu": "N/mm^2", "gravity": "mm/s^2 (downward)",
-         "v0": "mm/s (vertical, whole disc; < 0 downward)", "mass": "t per mm of thickness (rho pi R^2)",
+         "rho": "t/mm^3", "lame_lambda": "N/mm^2", "lame_mu": "N/mm^2",
+         "gravity": "mm/s^2 (magnitude; along (sin theta, -cos theta), theta = gravity_angle: downward at 0)",
+         "gravity_angle": "degrees (theta: gravity g (sin theta, -cos theta), at theta to -e_y; the foundation "
+                          "inclined at theta, seen in its frame)",
+         "v0": "mm/s (vertical, whole disc; < 0 downward)", "vx0": "mm/s (horizontal, whole disc)",
+         "mass": "t per mm of thickness (rho pi R^2)",
          "probe": "mm (point A, the lowest boundary vertex: u_probe and lambda_probe are recorded there)",
          "t": "s", "dt": "s", "T": "s",
          "energy": "N mm = mJ per mm of thickness (kinetic + elastic + gravity, 0 at rest at t = 0)",
@@ -44,6 +56,7 @@ UNITS = {"level": "-", "h": "mm (gmsh mesh size)",
          "lambda_probe": "N/mm^2 (contact stress at A: nodal multiplier / lumped boundary length; >= 0 "
                          "compressive)",
          "contact_force": "N per mm of thickness (sum of the nodal multipliers)",
+         "momentum_x": "t mm/s = N s per mm of thickness (e_x^T M Vbar)",
          "momentum_y": "t mm/s = N s per mm of thickness (e_y^T M Vbar)",
          "gap_min_boundary": "mm (min of y + u_y over every displacement dof of the contact boundary, P2 mid-edge "
                              "nodes included; < 0: below the foundation)"}
@@ -82,8 +95,18 @@ def _probe(msh, radius, height):
     return a, f"lowest boundary vertex ({a[0]:.10g}, {a[1]:.10g})"
 
 
-def _build(comm, level, h, mesh_file, radius, height, rho, lame_lambda, lame_mu, gravity, v0, contact_zone,
-           with_contact):
+def gravity_vector(gravity, gravity_angle):
+    """The gravity vector g (sin theta, -cos theta) (mm/s^2), theta = ``gravity_angle`` in degrees:
+    (0, -g) formed exactly as before the angle existed when theta = 0 (the default disc's runs
+    are bit-identical)."""
+    if gravity_angle == 0.0:
+        return np.array((0.0, -gravity), dtype=PETSc.ScalarType)
+    theta = np.deg2rad(gravity_angle)
+    return np.array((gravity * np.sin(theta), -gravity * np.cos(theta)), dtype=PETSc.ScalarType)
+
+
+def _build(comm, level, h, mesh_file, radius, height, rho, lame_lambda, lame_mu, gravity, gravity_angle, v0, vx0,
+           contact_zone, with_contact):
     """The disc Problem for declared values (see :data:`SPEC`)."""
     if contact_zone not in CONTACT_ZONES:
         raise ValueError(f"unknown contact zone {contact_zone!r}; choose one of {', '.join(CONTACT_ZONES)}")
@@ -112,7 +135,7 @@ def _build(comm, level, h, mesh_file, radius, height, rho, lame_lambda, lame_mu,
     ds_c = ds if contact_zone == "all" else ds(LOWER)
     # a Constant, not a literal vector: with gravity = 0 UFL would simplify the load form
     # to an empty form (no integration domain)
-    g = fem.Constant(msh, np.array((0.0, -gravity), dtype=PETSc.ScalarType))
+    g = fem.Constant(msh, gravity_vector(gravity, gravity_angle))
     # a mesh of one's own need not have a vertex at (0, height) (a polygon, rotated): probe A where it is
     probe, probe_text = _probe(msh, radius, height)
 
@@ -121,7 +144,7 @@ def _build(comm, level, h, mesh_file, radius, height, rho, lame_lambda, lame_mu,
         a=lambda u, w: ufl.inner(sigma(u, lame_lambda, lame_mu), ufl.sym(ufl.grad(w))) * ufl.dx,
         l=lambda w: rho * ufl.inner(g, w) * ufl.dx,
         u0=lambda x: np.zeros((2, x.shape[1])),
-        v0=lambda x: np.vstack([np.zeros(x.shape[1]), np.full(x.shape[1], v0)]),
+        v0=lambda x: np.vstack([np.full(x.shape[1], vx0), np.full(x.shape[1], v0)]),
         constraint_vertices=contact_vertices,
         # foundation y = 0: a vertex at height y must keep y + u_y >= 0
         lower_bound=lambda x: -x[1],
@@ -130,12 +153,13 @@ def _build(comm, level, h, mesh_file, radius, height, rho, lame_lambda, lame_mu,
         constraint_measure=lambda q: q * ds_c,
         dirichlet_facets=None,
         probe=probe,
-        extra_columns=("contact_force", "momentum_y", "elastic"),
+        extra_columns=("contact_force", "momentum_x", "momentum_y", "elastic"),
         momentum_component=1,
         parameters={"level": level, "h": h, "mesh_file": None if mesh_file is None else str(mesh_file),
                     "radius": radius,
                     "height": height, "centre": [0.0, cy], "rho": rho, "lame_lambda": lame_lambda,
-                    "lame_mu": lame_mu, "gravity": gravity, "v0": v0, "contact_zone": contact_zone,
+                    "lame_mu": lame_mu, "gravity": gravity, "gravity_angle": gravity_angle, "v0": v0, "vx0": vx0,
+                    "contact_zone": contact_zone,
                     "contact_nodes": "vertices", "with_contact": with_contact, "plane": "strain",
                     "gmsh_algorithm": ALGORITHM, "geometry_degree": 2,
                     "mass": rho * np.pi * radius ** 2, "probe": probe_text},
@@ -147,6 +171,40 @@ def total_mass(problem):
     """rho |Omega| of the mesh (t per mm of thickness): the discrete mass e^T M e."""
     m = fem.assemble_scalar(compat.form(problem.rho * ufl.dx(domain=problem.mesh)))
     return problem.mesh.comm.allreduce(m, op=MPI.SUM)
+
+
+def incline_motion(gravity, gravity_angle, mu, radius):
+    """The rigid disc's motion on the foundation inclined at theta (closed form, no elasticity).
+
+    A uniform disc of mass m, radius R, moment of inertia I = m R^2/2, resting on the
+    foundation with gravity g (sin theta, -cos theta): the normal force is N = m g cos theta,
+    the friction force F (along -x when it resists), the centre's acceleration a and the
+    angular acceleration alpha (rolling down the slope: positive) obey
+        m a = m g sin theta - F,    I alpha = F R.
+    Rolling without slipping, a = alpha R: F = I a / R^2 = m a / 2, so a = (2/3) g sin theta and
+    F = (1/3) m g sin theta, which Coulomb's law |F| <= mu N allows when mu >= tan(theta)/3.
+    Otherwise the contact slides, F = mu N: a = g (sin theta - mu cos theta) and
+    alpha = mu m g cos theta R / I = 2 mu g cos theta / R (the contact point slips forward at
+    a - alpha R = g (sin theta - 3 mu cos theta) > 0). Frictionless (mu = 0): a = g sin theta,
+    alpha = 0.
+
+    Args:
+        gravity: g (mm/s^2). gravity_angle: theta (degrees, in [0, 90)).
+        mu: the Coulomb friction coefficient (>= 0; 0: frictionless). radius: R (mm).
+
+    Returns:
+        ``{"regime": "rolling" | "sliding" | "at rest", "a": centre's acceleration (mm/s^2),
+        "alpha": angular acceleration (rad/s^2), "mu_roll": tan(theta)/3}`` (theta = 0: at rest).
+    """
+    theta = np.deg2rad(gravity_angle)
+    mu_roll = np.tan(theta) / 3.0
+    if theta == 0.0:
+        return {"regime": "at rest", "a": 0.0, "alpha": 0.0, "mu_roll": 0.0}
+    if mu >= mu_roll:
+        a = 2.0 / 3.0 * gravity * np.sin(theta)
+        return {"regime": "rolling", "a": a, "alpha": a / radius, "mu_roll": mu_roll}
+    return {"regime": "sliding", "a": gravity * (np.sin(theta) - mu * np.cos(theta)),
+            "alpha": 2.0 * mu * gravity * np.cos(theta) / radius, "mu_roll": mu_roll}
 
 
 #: the disc's parameters, declared once (command line, TOML, run.json, rebuild)
@@ -163,8 +221,13 @@ PARAMS = (
     Param("rho", 1e-6, "density", unit="t/mm^3", low=0.0, low_strict=True),
     Param("lame_lambda", 300.0, "Lamé lambda", unit="N/mm^2"),
     Param("lame_mu", 150.0, "Lamé mu", unit="N/mm^2", low=0.0, low_strict=True),
-    Param("gravity", 9810.0, "gravitational acceleration (downward)", unit="mm/s^2"),
+    Param("gravity", 9810.0, "gravitational acceleration, along (sin theta, -cos theta) (downward at the default "
+          "--gravity-angle 0)", unit="mm/s^2"),
+    Param("gravity_angle", 0.0, "angle theta in [0, 90) of gravity from -e_y, g (sin theta, -cos theta): the "
+          "foundation inclined at theta, seen in its frame (0: the paper's disc)", unit="degrees", low=0.0,
+          metavar="THETA"),
     Param("v0", -1000.0, "initial vertical velocity of the disc, negative downward", unit="mm/s"),
+    Param("vx0", 0.0, "initial horizontal velocity of the disc (an oblique impact: (vx0, v0))", unit="mm/s"),
     Param("contact_zone", "lower", "boundary vertices that may touch: the lower half circle or all", type=str,
           choices=CONTACT_ZONES),
     Param("with_contact", True, "remove the foundation (free flight)", flag="no-contact"),
@@ -182,6 +245,8 @@ def _check(values, label):
         errors.append(f"{label('h')} must be >= radius / {1 / disc_mesh.MIN_H_RATIO:g} (got {values['h']} mm)")
     if values["h"] is not None and values["h"] > values["radius"]:
         errors.append(f"{label('h')} must be in (0, radius] mm (got {values['h']})")
+    if not values["gravity_angle"] < 90.0:
+        errors.append(f"{label('gravity_angle')} must be in [0, 90) degrees (got {values['gravity_angle']})")
     if values["lame_lambda"] + values["lame_mu"] <= 0:
         errors.append(f"{label('lame_lambda')} + {label('lame_mu')} must be > 0 in plane strain (got "
                       f"{values['lame_lambda']} + {values['lame_mu']})")
@@ -197,6 +262,6 @@ SPEC = ProblemSpec(
 
 def problem(comm=MPI.COMM_WORLD, **values):
     """The paper's falling disc; ``values`` are :data:`PARAMS` (``level``, ``h``, ``mesh_file``,
-    ``radius``, ``height``, ``rho``, ``lame_lambda``, ``lame_mu``, ``gravity``, ``v0``,
-    ``contact_zone``, ``with_contact``), the others at their defaults."""
+    ``radius``, ``height``, ``rho``, ``lame_lambda``, ``lame_mu``, ``gravity``, ``gravity_angle``,
+    ``v0``, ``vx0``, ``contact_zone``, ``with_contact``), the others at their defaults."""
     return SPEC.problem(comm, **values)

@@ -16,7 +16,7 @@ def test_command_line(mpi_tmp_path):
     if COMM.rank == 0:
         header = (out / "timeseries.csv").read_text().splitlines()[0]
         assert header == ("step,t,energy,kinetic,potential,u_probe,lambda_probe,n_active,newton_its,"
-                          "contact_force,momentum_y,elastic,gap_min_boundary")
+                          "contact_force,momentum_x,momentum_y,elastic,gap_min_boundary")
         info = json.loads((out / "run.json").read_text())
         assert info["status"] == "finished"
         params, units = info["problem"]["parameters"], info["problem"]["units"]

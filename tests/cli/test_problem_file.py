@@ -44,7 +44,7 @@ def test_problem_file_round_trip(mpi_tmp_path, capsys):
     assert a["n_active"].max() > 0                                  # it reached the floor
     info = json.loads((ref / "run.json").read_text()) if COMM.rank == 0 else None
     info = COMM.bcast(info, root=0)
-    assert info["problem"]["name"] == "block" and info["problem"]["source"] == str(f.resolve())
+    assert info["problem"]["name"] == "my_block" and info["problem"]["source"] == str(f.resolve())
     assert info["problem"]["args"]["n"] == 4 and info["pair"] == "P2/P1"    # the file's default pair
     # bad values of its declared parameters: one line, exit 2, nothing written
     capsys.readouterr()

@@ -372,3 +372,11 @@ def test_default_keys_are_the_run_options():
     time unit): the two lists cannot drift apart."""
     from sdm_dolfinx.run import RUN_DEFAULTS
     assert set(registry.DEFAULT_KEYS) == set(RUN_DEFAULTS) | {"time_unit"}
+
+
+def test_unknown_extra_column_is_refused_in_one_line():
+    """A misspelt extra column would otherwise end the run with an internal KeyError at row 0."""
+    import dataclasses
+    p = membrane.problem(N=2)
+    with pytest.raises(ProblemInputError, match=r"unknown extra_columns 'momentum_z'; choose among contact_force"):
+        dataclasses.replace(p, extra_columns=("contact_force", "momentum_z"))
