@@ -43,8 +43,8 @@ test-dolfinx09: setup
 	NP=$(NP) bash scripts/dolfinx09.sh test
 
 # The paper's figures, Table 2 and an HTML report regenerated from the runs' files (see
-# sdm_dolfinx/paper/): `make figures` runs the full study into output/study (77 runs, about
-# 45 min on 2 cores, 26 of them the paper's finest disc, 513k dofs, 4.9 GB; resumable: a rerun
+# sdm_dolfinx/paper/): `make figures` runs the full study into output/study (81 runs, about
+# 19 min on 2 cores, 13 of them the paper's finest disc, 513k dofs, 1.0 GB; resumable: a rerun
 # computes only what is missing) and writes report/; `make figures QUICK=1` (or
 # `make figures-quick`) is the two-minute version -> output/report-quick.
 # FIGURES_ARGS="--disc-max-level 5" stops the disc convergence study at 126k dofs.
