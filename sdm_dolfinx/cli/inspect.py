@@ -15,12 +15,15 @@ from pathlib import Path
 from mpi4py import MPI
 
 from sdm_dolfinx import compat, problems
-from sdm_dolfinx.cli.common import (Parser, UsageError, check_writable, parse_or_help, positive_int,
+from sdm_dolfinx.cli.common import (Parser, UsageError, check_writable, parse_or_help, positive_float, positive_int,
                                     report_usage_error, say_error)
 from sdm_dolfinx.cli.params import add_param_options, param_values
+from sdm_dolfinx.method import schemes
+from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.method.pairs import PAIRS
 from sdm_dolfinx.mpiutil import atomic_write_text, json_text
 from sdm_dolfinx.post import DENSE_MAX, SWEEP_HEADER, TOL, InspectError, inspect, plot_sweep, report, sweep, sweep_line
+from sdm_dolfinx.post.friction_bound import bound_line, coulomb_bound
 from sdm_dolfinx.problems import ProblemInputError
 from sdm_dolfinx.problems.disc_mesh import MeshError
 from sdm_dolfinx.run import RunInputError
@@ -96,6 +99,14 @@ def build_parser(spec):
                    help=f"run a sequence of meshes: values of --{param} (default {' '.join(map(str, default_values))})"
                         " and print beta against h" if default_values else
                         "run a sequence of meshes (the membrane's --N, the disc's --level; not for this problem)")
+    p.add_argument("--coulomb-bound", action="store_true",
+                   help="also measure the Coulomb coefficient below which the frictional step problem stays "
+                        "well-posed (2-D vector problems: the Newton matrix with every constrained vertex in "
+                        "contact and slipping stays positive definite; it depends on --dt and --scheme)")
+    p.add_argument("--dt", type=positive_float, default=None,
+                   help=f"time step of --coulomb-bound (default: the problem's, {spec.defaults.get('dt', 1e-3)})")
+    p.add_argument("--scheme", default="midpoint", choices=list(schemes.names()),
+                   help="time scheme of --coulomb-bound (default midpoint)")
     p.add_argument("--json", type=Path, default=None, metavar="FILE", help="write the results as JSON")
     p.add_argument("--png", type=Path, default=None, metavar="FILE",
                    help="with --sweep: the beta-h plot (default output/inspect/<problem>-beta.png)")
@@ -127,6 +138,11 @@ def check(args, spec):
         errors.append(str(e))
     if args.dense_max < 0:
         errors.append(f"--dense-max must be >= 0 (got {args.dense_max})")
+    if args.sweep is not None and args.coulomb_bound:
+        errors.append("--coulomb-bound measures one mesh: drop --sweep")
+    if args.dt is not None and not args.coulomb_bound:
+        errors.append("--dt is for --coulomb-bound")
+    args.dt = args.dt or spec.defaults.get("dt", 1e-3)
     if args.sweep is not None:
         errors += _check_sweep(args, spec, given)
     elif args.png is not None:
@@ -193,8 +209,8 @@ def main(argv=None):
         rows = measure_all(spec, given, args, comm)
     except InspectError as e:
         return say_error(PROG, e, comm, 1)
-    except (MeshError, ProblemInputError) as e:      # a --mesh file that cannot be used: bad input
-        return say_error(PROG, e, comm, 2)
+    except (MeshError, ProblemInputError, DiscretisationError) as e:   # a --mesh file that cannot be used,
+        return say_error(PROG, e, comm, 2)                              # friction on a scalar problem: bad input
     if comm.rank == 0:
         write_outputs(rows, spec, args, argv, comm)
     return 0
@@ -217,6 +233,9 @@ def measure_all(spec, given, args, comm):
         for pair in args.pair:
             rows.append(inspect(problem, pair, tol=args.tol, dense_max=args.dense_max))
             say(report(rows[-1]))
+            if args.coulomb_bound:
+                rows[-1]["coulomb_bound"] = coulomb_bound(problem, pair, args.dt, args.scheme)
+                say(bound_line(rows[-1]["coulomb_bound"]))
         return rows
     param = _sweep_of(spec)[0]
     say(f"sweep of {spec.name} over --{param} = {' '.join(map(str, args.sweep))} on {comm.size} rank(s); "
