@@ -170,8 +170,10 @@ class StaticStart:
     Collective: every rank calls it, as ``Function.interpolate`` is.
     """
 
-    def __init__(self, msh, a, l, x_fixed, on_bottom):
-        self.msh, self.a, self.l, self.x_fixed, self.on_bottom = msh, a, l, x_fixed, on_bottom
+    def __init__(self, msh, solve, label="block --start equilibrium", instead="--start rest"):
+        """``solve(element) -> fem.Function``: the static solution in a vector ``element``;
+        ``label`` and ``instead`` name the option and its alternative in the error message."""
+        self.msh, self.solve, self.label, self.instead = msh, solve, label, instead
         self.solutions = {}
 
     def __call__(self, x):
@@ -181,14 +183,14 @@ class StaticStart:
         ppc = msh.comm.allreduce(x.shape[1] // ncells if ncells else 0, op=MPI.MAX)
         if ppc not in ELEMENTS_BY_POINTS or x.shape[1] != ppc * ncells:
             raise _problem.ProblemInputError(
-                f"block --start equilibrium: no static solution for a displacement element with {ppc} "
-                f"interpolation points per cell (P1, P1+ and P2 have one); use --start rest")
+                f"{self.label}: no static solution for a displacement element with {ppc} "
+                f"interpolation points per cell (P1, P1+ and P2 have one); use {self.instead}")
         if ppc not in self.solutions:
             family, degree = ELEMENTS_BY_POINTS[ppc]
             cell = compat.cell_name(msh)
             element = (compat.p1_bubble_element(cell, (2,)) if family == "P+"
                        else compat.element(family, cell, degree, (2,)))
-            self.solutions[ppc] = static_solution(msh, element, self.a, self.l, self.x_fixed, self.on_bottom)
+            self.solutions[ppc] = self.solve(element)
         cells = np.repeat(np.arange(ncells, dtype=np.int32), ppc)
         return self.solutions[ppc].eval(np.ascontiguousarray(x.T), cells).T
 
@@ -223,7 +225,7 @@ def _build(comm, width, height, nx, ny, E, nu, rho, gravity, v0, start):
 
     x_probe = (nx // 2) * width / nx                 # the bottom vertex nearest to the centre
     if start == "equilibrium":
-        u0 = StaticStart(msh, a, l, x_probe, on_bottom)
+        u0 = StaticStart(msh, lambda element: static_solution(msh, element, a, l, x_probe, on_bottom))
     else:
         u0 = lambda x: np.zeros((2, x.shape[1]))                             # noqa: E731
     return _problem.Problem(

@@ -11,11 +11,15 @@ the paper mixes units; these are the consistent values.)
 
 An inclined foundation (--gravity-angle THETA, degrees): gravity g (sin THETA, -cos THETA),
 the disc on a foundation inclined at THETA seen in the foundation's frame (x down the
-slope). With --height 0 --v0 0 it starts at rest just touching. A rigid disc (I = m R^2/2)
-rolls without slipping when the friction coefficient mu >= tan(THETA)/3, its centre
-accelerating at (2/3) g sin THETA; it slides when mu < tan(THETA)/3, its centre at
-g (sin THETA - mu cos THETA), spinning up at 2 mu g cos THETA / R; frictionless: g sin THETA
-(see incline_motion). --vx0 adds a horizontal initial velocity (an oblique impact).
+slope). With --height 0 --v0 0 it starts unstressed at rest just touching (and then bounces on
+its own weight); --start equilibrium --height 0 --v0 0 starts it resting on the foundation in
+static equilibrium under the normal part of gravity (signorini.resting_solution, in the run's
+own displacement element), so that the foundation carries m g cos THETA from t = 0 and no
+normal vibration starts. A rigid disc (I = m R^2/2) rolls without slipping when the friction
+coefficient mu >= tan(THETA)/3, its centre accelerating at (2/3) g sin THETA; it slides when
+mu < tan(THETA)/3, its centre at g (sin THETA - mu cos THETA), spinning up at
+2 mu g cos THETA / R; frictionless: g sin THETA (see incline_motion). --vx0 adds a horizontal
+initial velocity (an oblique impact).
 """
 from pathlib import Path
 
@@ -30,11 +34,16 @@ from sdm_dolfinx import compat
 
 from sdm_dolfinx.problems import base as _problem
 from sdm_dolfinx.problems.base import Param, ProblemSpec
+from sdm_dolfinx.problems.block import StaticStart
+from sdm_dolfinx.problems.signorini import resting_solution
 from sdm_dolfinx.problems import disc_mesh
 from sdm_dolfinx.problems.disc_mesh import ALGORITHM, LEVELS, LOWER, make_mesh, read_mesh
 
 #: the potential contact zones: the lower half circle (y <= centre) or the whole boundary
 CONTACT_ZONES = ("lower", "all")
+#: how the disc starts: unstressed (u0 = 0) at --height with (--vx0, --v0), or resting on the
+#: foundation in static equilibrium (signorini.resting_solution) with (--vx0, 0)
+STARTS = ("unstressed", "equilibrium")
 
 #: the unit of every parameter and time-series column (for run.json; --help states them too)
 UNITS = {"level": "-", "h": "mm (gmsh mesh size)",
@@ -46,6 +55,7 @@ UNITS = {"level": "-", "h": "mm (gmsh mesh size)",
          "gravity_angle": "degrees (theta: gravity g (sin theta, -cos theta), at theta to -e_y; the foundation "
                           "inclined at theta, seen in its frame)",
          "v0": "mm/s (vertical, whole disc; < 0 downward)", "vx0": "mm/s (horizontal, whole disc)",
+         "start": "- (unstressed: u0 = 0; equilibrium: resting on the foundation under (0, -g cos theta))",
          "mass": "t per mm of thickness (rho pi R^2)",
          "probe": "mm (point A, the lowest boundary vertex: u_probe and lambda_probe are recorded there)",
          "t": "s", "dt": "s", "T": "s",
@@ -105,9 +115,37 @@ def gravity_vector(gravity, gravity_angle):
     return np.array((gravity * np.sin(theta), -gravity * np.cos(theta)), dtype=PETSc.ScalarType)
 
 
+def _initial_displacement(start, msh, a, load_y, rho, contact_vertices, pins, radius):
+    """u0: zero (``unstressed``), or (``equilibrium``) the disc resting on the foundation under
+    the load's normal part (0, ``load_y``) (:func:`.signorini.resting_solution`), solved in the
+    run's own displacement element (:class:`~sdm_dolfinx.problems.block.StaticStart`)."""
+    if start == "unstressed":
+        return lambda x: np.zeros((2, x.shape[1]))
+    g_n = fem.Constant(msh, np.array((0.0, load_y), dtype=PETSc.ScalarType))
+
+    def l_n(w):
+        return rho * ufl.inner(g_n, w) * ufl.dx
+
+    return StaticStart(msh, lambda element: resting_solution(msh, element, a, l_n, contact_vertices(msh), pins,
+                                                             radius),
+                       label="disc --start equilibrium", instead="--start unstressed")
+
+
 def _build(comm, level, h, mesh_file, radius, height, rho, lame_lambda, lame_mu, gravity, gravity_angle, v0, vx0,
-           contact_zone, with_contact):
-    """The disc Problem for declared values (see :data:`SPEC`)."""
+           contact_zone, with_contact, start="unstressed"):
+    """The disc Problem for declared values (see :data:`SPEC`).
+
+    ``start = "equilibrium"`` (height 0, v0 0: :func:`_check`): U^0 = U_s, the resting solution
+    under (0, -g cos theta) in W^h, and Vbar^0 = (vx0, 0). At theta = 0 the frictionless run
+    then stays there, translated: U^n = U_s + vx0 t_n e_x with lam = A U_s - L >= 0 at the
+    active vertices solves every step's LCP (A e_x = 0; K = alpha^2 M + A is positive definite,
+    so it is the only solution), the foundation carries m g and u_probe stays 0 (measured: sum
+    lam = m g to 5e-14, tests/physics/test_friction_closed_forms.py). At theta > 0 the
+    tangential part of gravity starts the motion down the slope from a disc already pressing on
+    the foundation with m g cos theta. (P1 and P1+ displacements on levels 1 and 2, where A alone
+    touches, are not quite in equilibrium: their discrete load has a moment of 1e-4 m g R about
+    A, which the static solve's second pin takes; sum lam then drifts by 1e-5 m g.)
+    """
     if contact_zone not in CONTACT_ZONES:
         raise ValueError(f"unknown contact zone {contact_zone!r}; choose one of {', '.join(CONTACT_ZONES)}")
     cy = radius + height
@@ -139,11 +177,18 @@ def _build(comm, level, h, mesh_file, radius, height, rho, lame_lambda, lame_mu,
     # a mesh of one's own need not have a vertex at (0, height) (a polygon, rotated): probe A where it is
     probe, probe_text = _probe(msh, radius, height)
 
+    def a(u, w):
+        """Plane-strain elasticity (sigma(u), eps(w))."""
+        return ufl.inner(sigma(u, lame_lambda, lame_mu), ufl.sym(ufl.grad(w))) * ufl.dx
+
+    u0 = _initial_displacement(start, msh, a, gravity_vector(gravity, gravity_angle)[1], rho, contact_vertices,
+                               (probe, (0.0, cy + radius)), radius)
+
     return _problem.Problem(
         name="disc", mesh=msh, shape=(2,), rho=rho,
-        a=lambda u, w: ufl.inner(sigma(u, lame_lambda, lame_mu), ufl.sym(ufl.grad(w))) * ufl.dx,
+        a=a,
         l=lambda w: rho * ufl.inner(g, w) * ufl.dx,
-        u0=lambda x: np.zeros((2, x.shape[1])),
+        u0=u0,
         v0=lambda x: np.vstack([np.full(x.shape[1], vx0), np.full(x.shape[1], v0)]),
         constraint_vertices=contact_vertices,
         # foundation y = 0: a vertex at height y must keep y + u_y >= 0
@@ -159,7 +204,7 @@ def _build(comm, level, h, mesh_file, radius, height, rho, lame_lambda, lame_mu,
                     "radius": radius,
                     "height": height, "centre": [0.0, cy], "rho": rho, "lame_lambda": lame_lambda,
                     "lame_mu": lame_mu, "gravity": gravity, "gravity_angle": gravity_angle, "v0": v0, "vx0": vx0,
-                    "contact_zone": contact_zone,
+                    "contact_zone": contact_zone, "start": start,
                     "contact_nodes": "vertices", "with_contact": with_contact, "plane": "strain",
                     "gmsh_algorithm": ALGORITHM, "geometry_degree": 2,
                     "mass": rho * np.pi * radius ** 2, "probe": probe_text},
@@ -231,6 +276,9 @@ PARAMS = (
     Param("contact_zone", "lower", "boundary vertices that may touch: the lower half circle or all", type=str,
           choices=CONTACT_ZONES),
     Param("with_contact", True, "remove the foundation (free flight)", flag="no-contact"),
+    Param("start", "unstressed", "initial state: unstressed (u0 = 0) at --height with velocity (--vx0, --v0), or "
+          "resting on the foundation in static equilibrium under the normal part of gravity, velocity (--vx0, 0) "
+          "(needs --height 0 --v0 0)", type=str, choices=STARTS),
 )
 
 
@@ -245,6 +293,11 @@ def _check(values, label):
         errors.append(f"{label('h')} must be >= radius / {1 / disc_mesh.MIN_H_RATIO:g} (got {values['h']} mm)")
     if values["h"] is not None and values["h"] > values["radius"]:
         errors.append(f"{label('h')} must be in (0, radius] mm (got {values['h']})")
+    resting = values["height"] == 0 and values["v0"] == 0 and values["with_contact"]
+    if values["start"] == "equilibrium" and not resting:
+        errors.append(f"{label('start')} equilibrium rests the disc on the foundation: it needs {label('height')} 0, "
+                      f"{label('v0')} 0 and the foundation (got {label('height')} {values['height']:g}, "
+                      f"{label('v0')} {values['v0']:g}{'' if values['with_contact'] else ', no contact'})")
     if not values["gravity_angle"] < 90.0:
         errors.append(f"{label('gravity_angle')} must be in [0, 90) degrees (got {values['gravity_angle']})")
     if values["lame_lambda"] + values["lame_mu"] <= 0:
@@ -263,5 +316,5 @@ SPEC = ProblemSpec(
 def problem(comm=MPI.COMM_WORLD, **values):
     """The paper's falling disc; ``values`` are :data:`PARAMS` (``level``, ``h``, ``mesh_file``,
     ``radius``, ``height``, ``rho``, ``lame_lambda``, ``lame_mu``, ``gravity``, ``gravity_angle``,
-    ``v0``, ``vx0``, ``contact_zone``, ``with_contact``), the others at their defaults."""
+    ``v0``, ``vx0``, ``contact_zone``, ``with_contact``, ``start``), the others at their defaults."""
     return SPEC.problem(comm, **values)
