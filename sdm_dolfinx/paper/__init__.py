@@ -19,7 +19,9 @@ checkpoint. ``--quick`` (coarser, shorter; a few minutes) is the smoke test.
 Modules, in the order of the work: :mod:`.study` (the runs, the ``data/paper`` TOML files),
 :mod:`.runs` (computing what is missing), :mod:`.metrics` (the numbers), :mod:`.figures`
 and :mod:`.disc_figures` (the paper's figures, with :mod:`.plotting`), :mod:`.pictures`
-(3-D pictures; pyvista in a child process, :mod:`.pyvista_scene`) and :mod:`.report`.
+(3-D pictures; pyvista in a child process, :mod:`.pyvista_scene`) and :mod:`.report`; the
+friction section (issue 17, not in the paper): :mod:`.friction_study` (its runs),
+:mod:`.friction` (the incline and the block) and :mod:`.friction_impact` (the oblique impact).
 Post-processing reads HDF5 on rank 0 (h5py) and computes the disc's H¹ errors between
 non-matching meshes in parallel (:mod:`sdm_dolfinx.post`); the runs use all ranks.
 """

@@ -8,7 +8,8 @@ from mpi4py import MPI
 import numpy as np
 
 from sdm_dolfinx.mpiutil import atomic_write_text, json_text
-from sdm_dolfinx.paper import disc_figures, figures, metrics, pictures, table2, table2_report
+from sdm_dolfinx.paper import (disc_figures, figures, friction, friction_impact, metrics, pictures, table2,
+                               table2_report)
 from sdm_dolfinx.paper.runs import duration, read_run_info
 from sdm_dolfinx.paper.study import BE_PAIRS, MEMBRANE_PAIRS
 
@@ -57,6 +58,12 @@ PAPER_SAYS = {
               "setting).",
 }
 
+#: the friction section's heading (its entries say what their closed forms say)
+_FRICTION_HEAD = ("<h2>Friction (issue 17; not in the paper)</h2><p>Runs with Coulomb or Tresca friction at the "
+                  "contact vertices (run options <code>--friction</code>, <code>--mu</code>, "
+                  "<code>--tresca-threshold</code>), each next to the rigid-body closed form it should follow and a "
+                  "sentence computed from our numbers.</p>")
+
 _CSS = ("body{font-family:sans-serif;max-width:1200px;margin:auto;padding:1em;line-height:1.4}"
         "img{max-width:100%;border:1px solid #ccc}table{border-collapse:collapse;margin:0.5em 0}"
         "td,th{border:1px solid #bbb;padding:2px 6px;font-size:90%}.paper{color:#333}.ours{color:#024}"
@@ -84,6 +91,10 @@ def make_report(study, runs_dir, out, records, comm=COMM, say=print, meta=None):
         t2 = table2_report.entry(study, t2_errors, runs_dir)
         entries.append(t2)
         entries.append(_with_verdict(pictures.picture_disc(study, runs_dir, out)))
+        if study.friction is not None:             # issue 17: not in the paper, closed forms instead
+            entries += [friction.fig_incline(study.friction, runs_dir, out),
+                        friction.fig_block(study.friction, runs_dir, out),
+                        *friction_impact.impact_entries(study.friction, runs_dir, out)]
         meta = dict(meta or {}, runs_dir=runs_dir)
         meta["runs_total"] = sum((read_run_info(runs_dir / r.name) or {}).get("wall_time") or 0.0
                                  for r in study.runs())
@@ -120,7 +131,11 @@ def write_report(out, entries, t2, checks, records, study, meta):
     summary = [(e["key"], {"yes": "agrees", "part": "in part", "no": "does not agree"}[_verdict_of(e)])
                for e in entries]
     parts = _head(study, meta) + ["<h2>Summary</h2>" + _html_table(["figure", "verdict"], summary)]
-    parts += [_section(e, t2) for e in entries]
+    first_friction = next((i for i, e in enumerate(entries) if e.get("says")), None)
+    for i, e in enumerate(entries):
+        if i == first_friction:            # entries with a closed form of their own ("says"), not the paper's
+            parts.append(_FRICTION_HEAD)
+        parts.append(_section(e, t2))
     parts += _energy_section(checks) + _runs_section(study, records, meta) + ["</body></html>"]
     atomic_write_text(out / "index.html", "\n".join(parts))
     numbers = {"mode": "quick" if study.quick else "full", "meta": {k: str(v) for k, v in meta.items()},
@@ -150,14 +165,14 @@ def _head(study, meta):
     if study.quick:
         parts.append("<p><b>Quick mode:</b> the membrane runs stop at T = 0.5 (the paper: 0.8), dt = 1e-4 is "
                      "skipped, Figs. 9-11 use fewer and coarser meshes, and the disc convergence study stops at "
-                     "level 3; verdicts refer to these runs.</p>")
+                     "level 3, the friction runs use disc level 1 only; verdicts refer to these runs.</p>")
     return parts
 
 
 def _section(e, t2):
     """One figure: the paper's statement, our sentence, the picture (and Table 2's rows)."""
     parts = [f"<section class='v-{_verdict_of(e)}' id='{e['key']}'><h2>{e['key']}</h2>"
-             f"<p class='paper'>{html.escape(PAPER_SAYS[e['key']])}</p>"
+             f"<p class='paper'>{html.escape(e.get('says') or PAPER_SAYS[e['key']])}</p>"
              f"<p class='ours'>{html.escape(e['ours'])}</p>"]
     if e.get("png"):
         parts.append(f"<img src='{e['png']}' alt='{e['key']}'>")

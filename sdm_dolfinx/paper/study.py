@@ -131,6 +131,8 @@ class Run:
                 return PAPER_TABLE2[row][2]
             lev = self.params["level"]
             return LEVEL_DOFS.get(lev, 4 * LEVEL_DOFS[6] * 4 ** (lev - 6))
+        if self.problem == "block":                    # P2 on nx x ny squares (the friction runs)
+            return 2 * (2 * self.params["nx"] + 1) * (2 * self.params["ny"] + 1)
         n = self.params["N"]
         pair = self.options["pair"]
         if pair.startswith("P2"):
@@ -224,6 +226,7 @@ class Study:
     conv_getfem: dict = field(default_factory=dict)  # Table 2 row -> Run on the paper's own mesh (rows 1-4)
     getfem_mesh_dir: Path = None                     # where the paper's meshes were found (None: not found)
     conv_levels_shown: tuple = ()
+    friction: object = None                          # the friction runs (issue 17): friction_study.FrictionStudy
 
     def runs(self):
         """Every run once, cheapest figures first."""
@@ -241,6 +244,8 @@ class Study:
             if lev in self.conv_getfem:
                 seen.setdefault(self.conv_getfem[lev].name, self.conv_getfem[lev])
             seen.setdefault(self.conv[lev].name, self.conv[lev])
+        for r in (self.friction.runs() if self.friction else ()):
+            seen.setdefault(r.name, r)
         return list(seen.values())
 
 
@@ -274,6 +279,8 @@ def make_study(quick=False, disc_max_level=None):
         s.conv_getfem = {row: conv_run(row, s.getfem_mesh_dir / f) for row, f in PAPER_MESHES.items() if row < top}
     # the paper shows three solutions a factor 4 apart in dt (levels 2, 4, 6 of Table 2)
     s.conv_levels_shown = (top - 4, top - 2, top) if top >= 5 else tuple(range(1, top + 1))
+    from sdm_dolfinx.paper import friction_study      # here: it builds on this module's Run
+    s.friction = friction_study.friction_runs(quick)
     return s
 
 
@@ -286,9 +293,9 @@ def _toml_value(v):
     return str(v)
 
 
-def config_text(run, title):
+def config_text(run, title, source="Renard 2010"):
     """The TOML file of ``run`` (``python -m sdm_dolfinx PROBLEM --config FILE`` computes it)."""
-    lines = [f"# Renard 2010, {title}", "# generated from sdm_dolfinx.paper.study.make_study by "
+    lines = [f"# {source}, {title}", "# generated from sdm_dolfinx.paper.study.make_study by "
              "scripts/gen_paper_configs.py: do not edit by hand",
              f"# python -m sdm_dolfinx {run.problem} --config THIS_FILE --out DIR", f'problem = "{run.problem}"']
     lines += [f"{k} = {_toml_value(v)}" for k, v in run.config().items()]
@@ -341,6 +348,10 @@ def paper_configurations(study=None):
             f"dt = {dt:g} s, {run.steps} steps as the paper's program ran them"
             + (f" (to t = {run.options['T']:g} s; the state at t = 0.02 s is stored too)"
                if run.steps != num_steps(PAPER_T, dt) else ""))
+    if s.friction is not None:
+        from sdm_dolfinx.paper import friction_study
+        for name, (run, title) in friction_study.configurations(s.friction).items():
+            out[name + ".toml"] = config_text(run, title, "friction (issue 17, not in the paper)")
     # the runs on the paper's own meshes (s.conv_getfem) are not written: their mesh files are not
     # part of the repository, and a configuration naming this machine's folder would not be portable
     return out

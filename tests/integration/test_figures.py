@@ -17,9 +17,11 @@ PNGS = ["fig01_membrane_3d.png", "fig02_P1plus-P0_mp.png", "fig03_P1-P0_mp.png",
         "fig05_P1plus-P1_mp.png", "fig06_P2-P1_mp.png", "fig07_P1plus-P0_be.png", "fig08_P1-P0_be.png",
         "fig09_P1-P0_be_meshes.png", "fig10_h_dt_together.png", "fig11_energy_error_vs_dt_over_h.png",
         "fig13_disc_mesh.png", "fig14_disc_P2-P2.png", "fig15_disc_P2-P1.png", "fig16_disc_convergence.png",
-        "disc_deformed_3d.png"]
+        "disc_deformed_3d.png", "friction_incline.png", "friction_block.png", "friction_impact_stress_A.png",
+        "friction_impact_zones.png"]
 KEYS = ["fig01", "fig02", "fig03", "fig04", "fig05", "fig06", "fig07", "fig08", "fig09", "fig10", "fig11",
-        "fig13", "fig14", "fig15", "fig16", "table2", "disc3d"]
+        "fig13", "fig14", "fig15", "fig16", "table2", "disc3d", "friction_incline", "friction_block",
+        "friction_impact_stress", "friction_impact_zones"]
 
 
 def _is_real_plot(path):
@@ -63,10 +65,60 @@ def test_quick_study_end_to_end(tmp_path, capsys):
     # the energy recomputed from state.h5 agrees with the in-run energy to the stored precision
     for c in numbers["energy_checks"]:
         assert c["max_roundoff_ratio"] < 300 * np.finfo(np.dtype(c["stored_dtype"])).eps
+    _check_friction(numbers["figures"], page)
     # a second call recomputes nothing
     assert cli.main(["figures", "--quick", "--out", str(out), "--runs", str(runs)]) == 0
     second = capsys.readouterr().out
     assert " 0 to compute" in second and "[1/" not in second
+
+
+def _check_friction(figs, page):
+    """The quick study's friction runs (level 1) against the rigid-body closed forms."""
+    assert "Friction (issue 17; not in the paper)" in page and "<th>a fitted (mm/s²)</th>" in page
+    for law, m in figs["friction_block"].items():               # stop at v0 / (mu g) (Tresca: s L = mu m g)
+        assert abs(m["stop_rel_error"]) < 0.02 and abs(m["a_rel_error"]) < 1e-3, law
+    roll, slide = figs["friction_incline"]["rolling"]["1"], figs["friction_incline"]["sliding"]["1"]
+    assert roll["regime"] == "rolling" and abs(roll["rel_error"]) < 0.03            # (2/3) g sin(theta)
+    assert slide["regime"] == "sliding" and abs(slide["rel_error"]) < 1e-3          # g (sin - mu cos)
+    assert roll["steps_slipping"] == 0 and slide["all_slip_after_onset"]
+    impact = figs["friction_impact_stress"]
+    for case, m in impact.items():                  # Coulomb's cone at every stored vertex and time
+        assert m["cone_excess"] < 1e-8 and m["slip_off_cone"] < 1e-8, case
+    s = impact["sliding"]                           # sliding throughout: dvx = -mu J_N / m
+    assert s["mu"] < s["mu_slides_throughout_below"] and abs(s["dvx"] / s["dvx_sliding_rigid"] - 1) < 1e-6
+    assert s["stick_fraction"] == 0.0 and impact["sticking"]["stick_fraction"] > 0.75
+
+
+def test_oscillation_fit_recovers_the_line():
+    """v = a t + c + A sin(w t + phi) sampled over about one period gives a, the period and A back
+    to 1e-6 relative (w minimises a sum of squares: found to about sqrt(eps))."""
+    from sdm_dolfinx.paper.friction import oscillation_fit
+    t = np.linspace(0.0, 0.01, 201)
+    v = 3270.0 * t + 0.3 + 2.4 * np.sin(2 * np.pi * t / 9.9e-3 + 0.4)
+    a, period, amp, rms = oscillation_fit(t, v)
+    assert abs(a / 3270.0 - 1) < 1e-6 and abs(period / 9.9e-3 - 1) < 1e-6 and abs(amp / 2.4 - 1) < 1e-6
+    assert rms < 1e-6
+
+
+def test_slip_places_of_a_hand_made_zone():
+    """Four vertices along x: the edges slip, one forward (sigma_T < 0) and one backward."""
+    from sdm_dolfinx.paper.friction_impact import _slip_places
+    frames = {"status": np.array([[0, 1, 1, 0], [2, 1, 1, 2]]), "x": np.array([[0.0, 1.0, 2.0, 3.0]] * 2),
+              "tangential": np.array([[0.0, -1.0, -1.0, 0.0], [-0.5, -1.0, 1.0, 0.5]])}
+    assert _slip_places(frames) == {"slip_at_edge_fraction": 1.0, "slip_backward_fraction": 0.5}
+
+
+def test_friction_runs_of_the_study():
+    """The quick study's friction runs are level 1; the full one's incline runs halve dt with h;
+    Tresca's threshold gives the Coulomb stop: s L = mu m g."""
+    from sdm_dolfinx.paper import friction_study as fsm
+    quick, full = fsm.friction_runs(True), fsm.friction_runs(False)
+    assert {r.params.get("level", 1) for r in quick.runs()} == {1}
+    dts = {lev: r.options["dt"] for lev, r in full.incline["rolling"].items()}
+    assert dts == {1: 1e-4, 2: 5e-5, 3: 2.5e-5}
+    p = fsm.BLOCK_PARAMS
+    assert abs(fsm.block_threshold() * p["width"] - 0.3 * p["rho"] * p["width"] * p["height"] * p["gravity"]) < 1e-12
+    assert set(r.name for r in quick.runs()) <= set(r.name for r in study.make_study(quick=True).runs())
 
 
 def test_fitted_rate_of_synthetic_errors():
