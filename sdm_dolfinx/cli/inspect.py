@@ -7,16 +7,14 @@ the run commands. ``--sweep`` runs a sequence of meshes (the membrane's ``--N``,
 ``--level``). Bad input: one line on stderr, exit status 2; a measurement that cannot be
 made: exit status 1.
 """
-import argparse
-import math
 import sys
 from pathlib import Path
 
 from mpi4py import MPI
 
 from sdm_dolfinx import compat, problems
-from sdm_dolfinx.cli.common import (Parser, UsageError, check_writable, parse_or_help, positive_float, positive_int,
-                                    report_usage_error, say_error)
+from sdm_dolfinx.cli.common import (Parser, UsageError, check_writable, nonnegative_float, parse_or_help,
+                                    positive_float, positive_int, report_usage_error, say_error)
 from sdm_dolfinx.cli.params import add_param_options, param_values
 from sdm_dolfinx.method import schemes
 from sdm_dolfinx.method.errors import DiscretisationError
@@ -34,16 +32,6 @@ PROG = "python -m sdm_dolfinx inspect"
 DEFAULT_PROBLEM = "membrane"
 #: the mesh parameter a sweep varies, and its default values, per built-in problem
 SWEEPS = {"membrane": ("N", (4, 8, 16, 32, 64)), "disc": ("level", (1, 2, 3))}
-
-
-def _nonneg_float(text):
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not math.isfinite(v) or v < 0:
-        raise argparse.ArgumentTypeError(f"must be a non-negative finite number (got {text})")
-    return v
 
 
 def _sweep_of(spec):
@@ -110,7 +98,7 @@ def build_parser(spec):
     p.add_argument("--json", type=Path, default=None, metavar="FILE", help="write the results as JSON")
     p.add_argument("--png", type=Path, default=None, metavar="FILE",
                    help="with --sweep: the beta-h plot (default output/inspect/<problem>-beta.png)")
-    p.add_argument("--tol", type=_nonneg_float, default=TOL,
+    p.add_argument("--tol", type=nonnegative_float, default=TOL,
                    help=f"beta <= tol counts as 0 (default 100 sqrt(eps) = {TOL:.2e})")
     p.add_argument("--dense-max", type=int, default=DENSE_MAX, metavar="N",
                    help=f"dense SVD up to dim W^h = N, iterative beyond (default {DENSE_MAX})")

@@ -53,7 +53,7 @@ def test_sweep_prints_table_and_writes_png(mpi_tmp_path, capsys):
     (["--sweep", "0"], "must be an integer >= 1"),
     (["--problem", "nope"], "invalid choice"),
     (["--png", "x.png"], "--png needs --sweep"),
-    (["--tol", "-1"], "non-negative"),
+    (["--tol", "-1"], "must be a finite number >= 0"),
     (["--bogus"], "unrecognized arguments"),
     (["--N", "100000"], "--N 100000 needs about"),
     (["--N", "2147483648"], "--N 2147483648 needs about"),
