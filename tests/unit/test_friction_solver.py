@@ -90,6 +90,11 @@ class Blocks:
             o.destroy()
 
 
+#: the meshes and spaces of the assembled matrices, kept alive with them: on dolfinx 0.9 a matrix
+#: whose mesh was garbage-collected crashes in createVecLeft (its local-to-global map is freed)
+_ALIVE = []
+
+
 def elastic_block(nx=12, ny=6, p=0.05, a2=0.01, comm=COMM):
     """Plane-strain block [0, 2] x [0, 1] (E = 1, nu = 0.3, P1): K = a2 I_mass + A, the top
     pressed down by p (load ``b``) and dragged sideways (load ``drag`` per unit traction);
@@ -108,6 +113,7 @@ def elastic_block(nx=12, ny=6, p=0.05, a2=0.01, comm=COMM):
     a = ufl.inner(sigma(u), ufl.sym(ufl.grad(v))) * ufl.dx + a2 * ufl.inner(u, v) * ufl.dx
     top = ufl.conditional(ufl.gt(ufl.SpatialCoordinate(msh)[1], 1.0 - 1e-8), 1.0, 0.0)
     K = compat.assemble_matrix(compat.form(a))
+    _ALIVE.append((msh, V))
     b, drag = (compat.assemble_vector(compat.form(top * f * ufl.ds)) for f in (-p * v[1], v[0]))
     X = V.tabulate_dof_coordinates()[:V.dofmap.index_map.size_local, :2]
     bottom = np.flatnonzero(np.abs(X[:, 1]) < 1e-12)
