@@ -2,14 +2,14 @@
 down an incline and the elastic block sliding to a stop, against their rigid-body closed
 forms, and the disc's oblique impact with a sticking and a sliding friction coefficient.
 
-Each is a :class:`~sdm_dolfinx.paper.study.Run` of a built-in problem with the run options
+Each is a :class:`~sdm_dolfinx.paper.run_spec.Run` of a built-in problem with the run options
 ``friction``, ``mu`` or ``tresca_threshold``; :func:`friction_runs` lays them out for the
 full or the quick study, :func:`configurations` names them for ``data/paper``.
 """
 from dataclasses import dataclass, field
 
 from sdm_dolfinx import problems
-from sdm_dolfinx.paper.study import Run
+from sdm_dolfinx.paper.run_spec import Run
 from sdm_dolfinx.problems.disc_mesh import LEVELS
 
 # ------------------------------------------------------------------ the disc on the incline

@@ -101,6 +101,46 @@ def test_the_checker_sees_function_level_imports(tmp_path):
         PACKAGE = saved
 
 
+def _module_name(path):
+    parts = list(path.relative_to(PACKAGE.parent).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _module_imports(path, known):
+    """The modules of sdm_dolfinx (names in ``known``) that ``path`` imports, function-level ones included."""
+    name = _module_name(path)
+    package = name if path.name == "__init__.py" else name.rsplit(".", 1)[0]
+    for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+        if isinstance(node, ast.Import):
+            targets = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = package.split(".")[:len(package.split(".")) - node.level + 1] if node.level else []
+            module = ".".join(base + ([node.module] if node.module else []))
+            targets = [f"{module}.{a.name}" if f"{module}.{a.name}" in known else module for a in node.names]
+        else:
+            continue
+        yield from (t for t in targets if t in known and t != name)
+
+
+def test_no_import_cycles():
+    """No module imports (directly or through others) one that imports it back, within a layer
+    too (the layer check cannot see paper.study <-> paper.friction_study)."""
+    paths = {_module_name(p): p for p in modules()}
+    graph = {m: set(_module_imports(p, paths)) for m, p in paths.items()}
+    cycles = []
+    for start in graph:                        # a path from each module back to itself
+        stack, seen = [(start, [start])], set()
+        while stack:
+            node, trail = stack.pop()
+            for nxt in graph[node]:
+                if nxt == start:
+                    cycles.append(" -> ".join(trail + [start]))
+                elif nxt not in seen:
+                    seen.add(nxt)
+                    stack.append((nxt, trail + [nxt]))
+    assert not cycles, "import cycles:\n" + "\n".join(sorted(set(cycles))[:10])
+
+
 def test_modules_are_small():
     big = [f"{p.relative_to(PACKAGE)}: {n} lines" for p in modules()
            if (n := len(p.read_text().splitlines())) > MAX_MODULE_LINES]
