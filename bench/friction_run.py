@@ -31,7 +31,6 @@ import os
 import statistics
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -161,26 +160,9 @@ def combine(recs):
 
 
 def spawn(spec, ranks, timeout=TIMEOUT, nice=0):
-    """One case in a fresh process (``mpirun -n ranks`` when ranks > 1), with the MPI
-    environment of :func:`bench.run.spawn`; ``nice``: its niceness increment."""
-    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-               OMPI_MCA_btl="self,vader", OMPI_MCA_mpi_yield_when_idle="1", OMPI_MCA_rmaps_base_oversubscribe="1")
-    with tempfile.TemporaryDirectory() as tmp:
-        res = Path(tmp) / "rec.json"
-        cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", json.dumps(spec), "--result", str(res)]
-        if ranks > 1:
-            cmd = ["mpirun", "-n", str(ranks)] + cmd
-        if nice:
-            cmd = ["nice", "-n", str(nice)] + cmd
-        load0 = os.getloadavg()[0]
-        try:
-            p = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=timeout)
-            rec = (json.loads(res.read_text()) if res.exists()
-                   else dict(spec, ranks=ranks, status="crashed", error=(p.stderr or p.stdout)[-500:]))
-        except subprocess.TimeoutExpired:
-            rec = dict(spec, ranks=ranks, status="timeout", error=f"no result within {timeout} s")
-        rec["load_before"], rec["load_after"] = round(load0, 2), round(os.getloadavg()[0], 2)
-        return rec
+    """One case in a fresh process of this script (:func:`bench.run.spawn`: ``mpirun -n ranks``
+    when ranks > 1, the same MPI environment); ``nice``: its niceness increment."""
+    return BR.spawn(spec, ranks, timeout, script=Path(__file__).resolve(), nice=nice)
 
 
 def ratios(records):

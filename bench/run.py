@@ -161,15 +161,20 @@ def combine(recs):
     return out
 
 
-def spawn(spec, ranks, timeout):
-    """Run one case in a fresh process (``mpirun -n ranks`` when ranks > 1)."""
+def spawn(spec, ranks, timeout, script=None, nice=0):
+    """Run one case in a fresh process (``mpirun -n ranks`` when ranks > 1): ``script --worker
+    SPEC --result FILE`` (default this file; bench/friction_run.py passes its own), with the
+    niceness increment ``nice``."""
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
                OMPI_MCA_btl="self,vader", OMPI_MCA_mpi_yield_when_idle="1", OMPI_MCA_rmaps_base_oversubscribe="1")
     with tempfile.TemporaryDirectory() as tmp:
         res = Path(tmp) / "rec.json"
-        cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", json.dumps(spec), "--result", str(res)]
+        cmd = [sys.executable, str(script or Path(__file__).resolve()), "--worker", json.dumps(spec), "--result",
+               str(res)]
         if ranks > 1:
             cmd = ["mpirun", "-n", str(ranks)] + cmd
+        if nice:
+            cmd = ["nice", "-n", str(nice)] + cmd
         load0 = os.getloadavg()[0]
         try:
             p = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=timeout)
