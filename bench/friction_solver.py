@@ -18,16 +18,14 @@ vertices the contact vertices:
 """
 import argparse
 import statistics
+import sys
 import time
+from pathlib import Path
 
 from mpi4py import MPI
-from petsc4py import PETSc
 
 import numpy as np
-import ufl
-from dolfinx import mesh
 
-from sdm_dolfinx import compat
 from sdm_dolfinx.solvers import SemismoothNewton, VIError
 from sdm_dolfinx.solvers import schur
 from sdm_dolfinx.solvers.friction import FrictionalNewton
@@ -37,23 +35,11 @@ COMM = MPI.COMM_WORLD
 
 
 def block(nx, ny, p=0.05, a2=0.01):
-    """K, the pressing load, the unit drag, the contact dofs and bounds (as in the tests)."""
-    msh = mesh.create_rectangle(COMM, [np.array([0.0, 0.0]), np.array([2.0, 1.0])], [nx, ny])
-    V = compat.function_space(msh, compat.element("Lagrange", compat.cell_name(msh), 1, (2,)))
-    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
-    lmbda, mu = 0.3 / (1.3 * 0.4), 1.0 / 2.6
-
-    def sigma(w):
-        eps = ufl.sym(ufl.grad(w))
-        return 2.0 * mu * eps + lmbda * ufl.tr(eps) * ufl.Identity(2)
-    a = ufl.inner(sigma(u), ufl.sym(ufl.grad(v))) * ufl.dx + a2 * ufl.inner(u, v) * ufl.dx
-    top = ufl.conditional(ufl.gt(ufl.SpatialCoordinate(msh)[1], 1.0 - 1e-8), 1.0, 0.0)
-    K = compat.assemble_matrix(compat.form(a))
-    b, drag = (compat.assemble_vector(compat.form(top * f * ufl.ds)) for f in (-p * v[1], v[0]))
-    X = V.tabulate_dof_coordinates()[:V.dofmap.index_map.size_local, :2]
-    bottom = np.flatnonzero(np.abs(X[:, 1]) < 1e-12)
-    lb = -0.05 * (X[bottom, 0] - 1.0) ** 2
-    return K, b, drag, (2 * bottom + 1).astype(np.int32), (2 * bottom).astype(np.int32), lb
+    """K, the pressing load, the unit drag, the contact dofs and bounds: the elastic block of the
+    solver's unit tests (tests/unit/test_friction_solver.py, one definition for both)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "unit"))
+    from test_friction_solver import elastic_block
+    return elastic_block(nx, ny, p=p, a2=a2)[:6]
 
 
 #: the drag of each step of the cost study, relative to q: dragged, more, held, back, back more
