@@ -18,7 +18,6 @@ the discrete mass, the problem rebuilt from run.json):
 * the block's velocity P_x / m, its deceleration (a line fitted while 10 % < v / v0 < 90 %) and
   its stop time (the first zero of v, interpolated between steps).
 """
-import html
 import math
 
 from mpi4py import MPI
@@ -30,7 +29,7 @@ from dolfinx import fem
 from sdm_dolfinx import compat, problems
 from sdm_dolfinx.method.discretisation import Discretisation
 from sdm_dolfinx.paper.friction_study import BLOCK_MU, INCLINE_MU, INCLINE_T, THETA, block_threshold
-from sdm_dolfinx.paper.metrics import Series, listing, pct, verdict
+from sdm_dolfinx.paper.metrics import Series, html_table, listing, pct, verdict
 from sdm_dolfinx.paper.plotting import COLOURS, pyplot, save
 from sdm_dolfinx.problems import block as block_problem, disc as disc_problem
 
@@ -245,9 +244,7 @@ def _incline_table(meas):
                          f"{100 * m['mean_rel_error']:+.3f} %", f"{m['steps_slipping']} / {m['steps']}"))
     head = ["regime", "μ", "level", "h (mm)", "dt (s)", "dofs", "a fitted (mm/s²)", "closed form", "rel. error",
             "mean a over the run", "rel. error", "steps with a slipping vertex"]
-    h = "".join(f"<th>{html.escape(c)}</th>" for c in head)
-    body = "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in r) + "</tr>" for r in rows)
-    return f"<table><tr>{h}</tr>{body}</table>"
+    return html_table(head, rows)
 
 
 # -------------------------------------------------------------------------------- the block

@@ -3,6 +3,7 @@ counting condition of (7), the rates of the disc's H¹ convergence (Fig. 16; the
 Table 2 are :mod:`.table2`'s) and the energy recomputed from the stored fields; with the few
 helpers that put numbers into sentences.
 """
+import html
 import math
 from pathlib import Path
 
@@ -166,6 +167,14 @@ def pct(x, digits=2):
 
 def listing(xs):
     return ", ".join(xs)
+
+
+def html_table(header, rows, markup_header=False):
+    """An HTML table, every cell escaped; ``markup_header``: the header cells are HTML already
+    (``e<sub>y</sub>``)."""
+    h = "".join(f"<th>{c if markup_header else html.escape(str(c))}</th>" for c in header)
+    body = "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in r) + "</tr>" for r in rows)
+    return f"<table><tr>{h}</tr>{body}</table>"
 
 
 def verdict(ok, partly=False):

@@ -115,12 +115,6 @@ def _with_verdict(e):
     return e
 
 
-def _html_table(header, rows):
-    h = "".join(f"<th>{html.escape(str(c))}</th>" for c in header)
-    body = "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in r) + "</tr>" for r in rows)
-    return f"<table><tr>{h}</tr>{body}</table>"
-
-
 def _verdict_of(e):
     """yes, part or no: the verdict an entry's sentence ends with."""
     return "yes" if "Ours agrees." in e["ours"] else ("part" if "agrees in part" in e["ours"] else "no")
@@ -130,7 +124,7 @@ def write_report(out, entries, t2, checks, records, study, meta):
     """index.html (figures next to the paper's statement and our computed verdict) + numbers.json."""
     summary = [(e["key"], {"yes": "agrees", "part": "in part", "no": "does not agree"}[_verdict_of(e)])
                for e in entries]
-    parts = _head(study, meta) + ["<h2>Summary</h2>" + _html_table(["figure", "verdict"], summary)]
+    parts = _head(study, meta) + ["<h2>Summary</h2>" + metrics.html_table(["figure", "verdict"], summary)]
     first_friction = next((i for i, e in enumerate(entries) if e.get("says")), None)
     for i, e in enumerate(entries):
         if i == first_friction:            # entries with a closed form of their own ("says"), not the paper's
@@ -189,7 +183,7 @@ def _energy_section(checks):
             "of the in-run diagnostics; largest difference to <code>timeseries.csv</code> relative to max|J| "
             "and in units of eps times the round-off scale ½|U|ᵀ|A||U| + |U|ᵀ|L| + ½|V|ᵀ|M||V| (eps of the "
             "stored precision; O(1)-O(100) means agreement to round-off):</p>",
-            _html_table(["run", "stored states", "max relative difference", "in eps of round-off scale",
+            metrics.html_table(["run", "stored states", "max relative difference", "in eps of round-off scale",
                          "state.h5 dtype"],
                         [(c["run"], c["states"], f"{c['max_rel_diff']:.2e}",
                           f"{c['max_roundoff_ratio'] / np.finfo(np.dtype(c['stored_dtype'])).eps:.3g}",
@@ -208,5 +202,5 @@ def _runs_section(study, records, meta):
                      "reused" if rec.get("cached") else "computed"))
     return ["<h2>Runs</h2><p>Each is <code>python -m sdm_dolfinx</code> with the options shown and "
             f"<code>--out {html.escape(str(meta['runs_dir']))}/NAME</code>.</p>",
-            _html_table(["name", "options", "linear solves", "status", "dim W", "steps", "run time",
+            metrics.html_table(["name", "options", "linear solves", "status", "dim W", "steps", "run time",
                          "this study"], rows)]

@@ -3,7 +3,7 @@ gmsh levels beside the paper's own meshes, the fitted rates and the run times; r
 import html
 import math
 
-from sdm_dolfinx.paper.metrics import Series, jsonable, listing, verdict
+from sdm_dolfinx.paper.metrics import Series, html_table, jsonable, listing, verdict
 from sdm_dolfinx.paper.runs import duration
 from sdm_dolfinx.paper.study import PAPER_RATE, PAPER_T, PAPER_TABLE2
 from sdm_dolfinx.paper.table2 import TOLERANCE, agreement
@@ -93,12 +93,6 @@ def _rows(t2, key):
     return out
 
 
-def _table(header, rows):
-    h = "".join(f"<th>{c}</th>" for c in header)
-    body = "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in r) + "</tr>" for r in rows)
-    return f"<table><tr>{h}</tr>{body}</table>"
-
-
 def _pct(x):
     return "—" if x is None else f"{x:.3g}"
 
@@ -126,10 +120,10 @@ def tables_html(t2, v):
     return ("<p>" + explanation(t2, v) + "</p><div style='display:flex;gap:2em;flex-wrap:wrap'>"
             "<div><h3>As the paper's program ran it</h3><p>its step counts; relative H¹ error ÷ "
             f"‖u<sub>ref</sub> + {ref['height_offset']:g} e<sub>y</sub>‖; {ref_line}</p>"
-            f"{_table(head_l, left)}</div>"
+            f"{html_table(head_l, left)}</div>"
             f"<div><h3>At t = 0.02 s exactly (ours)</h3><p>relative H¹ error ÷ ‖u<sub>ref</sub>‖, u from the "
             f"disc's initial position; {ref_line[:ref_line.rindex(',')]}, "
-            f"{ref['steps_t002']} steps</p>{_table(head_r, right)}</div></div>"
+            f"{ref['steps_t002']} steps</p>{html_table(head_r, right, markup_header=True)}</div></div>"
             f"<p>Rates fitted against dt on rows {listing(str(r) for r in t2['gmsh']['rates']['fit_rows'])} "
             f"(the paper: {PAPER_RATE} on rows 1-4): {rates}.</p>" + _times_table(t2))
 
@@ -147,4 +141,4 @@ def _times_table(t2):
                 seen.setdefault(e["run"], e)
     rows = [(e["run"], e["dofs"], e.get("steps_paper"), "" if e.get("wall_time") is None else duration(e["wall_time"]))
             for e in seen.values()]
-    return "<h3>Run times</h3>" + _table(["run", "dofs", "steps", "wall time (run.json)"], rows)
+    return "<h3>Run times</h3>" + html_table(["run", "dofs", "steps", "wall time (run.json)"], rows)
