@@ -188,6 +188,13 @@ class Discretisation:
         z = self.solve_C(bx)
         self.B.multTranspose(z, y)
 
+    def physical_velocity(self, Vbar, out):
+        """out = C^-1 B Vbar, the velocity in H^h of the M formulation (C diagonal: exact for P0,
+        lumped for P1, as M = B^T C^-1 B is built); returns ``out`` (a vector of H^h)."""
+        self.B.mult(Vbar, out)
+        out.pointwiseDivide(out, self.c_lumped)
+        return out
+
     def solve_C(self, b):
         """C^-1 b with CG (C is a well-conditioned mass matrix)."""
         if not hasattr(self, "_ksp_C"):

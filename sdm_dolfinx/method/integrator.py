@@ -73,7 +73,7 @@ class Integrator:
             d = discretisation
             self.factor_matrix = sparse_factor_matrix(self.K, d.A, d.B, d.c_lumped, self.alpha, d.ddofs)
         self.friction = friction if friction is not None and friction.on else None
-        self.slip = self.lam_t_work = None
+        self.slip = None
         if self.friction is None:
             self.solver = make_vi_solver(vi_solver, self.K, discretisation.cdofs, discretisation.lb,
                                          symmetric_positive=not self.block, linear=linear, options=options,
@@ -220,12 +220,12 @@ class Integrator:
         """Tangential multipliers of the last step at the owned constrained vertices (friction; else 0)."""
         return self.solver.lam_t if self.friction is not None else np.zeros(len(self.discretisation.cdofs))
 
-    @property
-    def contact_status(self):
-        """Per owned constrained vertex: 0 not in contact, 1 in contact and sticking (or without
-        friction), 2 in contact and slipping."""
-        active = np.asarray(self.active, dtype=bool)
-        slip = self.solver.slip if self.friction is not None else np.zeros_like(active)
+    def contact_status(self, active):
+        """Per owned constrained vertex, given which are in contact (``active``): 0 not in contact,
+        1 in contact and sticking (or without friction), 2 in contact and slipping (the last step's
+        slip set)."""
+        active = np.asarray(active, dtype=bool)
+        slip = np.asarray(self.solver.slip, dtype=bool) if self.friction is not None else np.zeros_like(active)
         return np.where(active, np.where(slip, 2.0, 1.0), 0.0)
 
     def initial_velocity(self, V):

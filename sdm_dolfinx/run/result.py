@@ -165,10 +165,7 @@ class Result:
             return self._function(d.H, self.V, "velocity")
         if d.H is None:
             return self._function(d.W, self.V, "velocity")
-        h = d.B.createVecLeft()
-        d.B.mult(self.V, h)
-        h.pointwiseDivide(h, d.c_lumped)
-        return self._function(d.H, h, "velocity")
+        return self._function(d.H, d.physical_velocity(self.V, d.B.createVecLeft()), "velocity")
 
     def vbar(self):
         """The final Vbar in W^h, the scheme's M-formulation vector (the XDMF's ``Vbar_W``): only

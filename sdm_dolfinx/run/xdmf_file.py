@@ -40,7 +40,6 @@ def time_key(t):
     return text, text.replace(".", "_")
 
 
-
 class XDMFWriter:
     """solution.xdmf + solution.h5: the fields of every K-th step in dolfinx's layout (ParaView
     and :func:`sdm_dolfinx.post.xdmf.read_xdmf` read it).
@@ -75,6 +74,7 @@ class XDMFWriter:
         self.uW = fem.Function(d.W)
         self.vH = fem.Function(d.H) if d.H is not None else None
         self.vW = fem.Function(d.W) if not integrator.block else None
+        self._vH_vec = d.B.createVecLeft() if self.vH is not None and self.vW is not None else None
         self.s1, self.a1 = fem.Function(d.Q1), fem.Function(d.Q1)
         # name -> (source Function, its Lagrange degree: 0 = P0 (written per cell), None = other)
         pair = d.pair
@@ -89,6 +89,7 @@ class XDMFWriter:
                                         "tangential_stress", "contact_status") if n in src)
         self.src = {n: f for n, (f, _) in src.items()}
         self.cell_fields = {n for n, (_, k) in src.items() if k == 0}
+        self._spaces = {}
         self.out = {n: self._route(f, k) for n, (f, k) in src.items() if k != 0}
         self.map = None
         self.steps = list(steps or [])
@@ -121,8 +122,11 @@ class XDMFWriter:
         via = None if exact else fem.Function(d.P1 if shape else d.Q1)
         if deg == 1:                           # the mesh's vertices: f itself (P1) or its P1 interpolant
             return None, via
-        msh = d.problem.mesh
-        return fem.Function(compat.function_space(msh, compat.element("Lagrange", compat.cell_name(msh), deg, shape))), via
+        if shape not in self._spaces:          # one Lagrange space of the nodes' degree per value shape
+            msh = d.problem.mesh
+            self._spaces[shape] = compat.function_space(msh, compat.element("Lagrange", compat.cell_name(msh), deg,
+                                                                            shape))
+        return fem.Function(self._spaces[shape]), via
 
     def _datasets(self, n):
         key = time_key(n * self.dt)[1]
@@ -136,21 +140,17 @@ class XDMFWriter:
             self.vH.x.array[:len(V.array)] = V.array
         else:
             self.vW.x.array[:len(V.array)] = V.array
-            if self.vH is not None:                 # the physical velocity C^-1 B Vbar (C diagonal)
-                h = d.B.createVecLeft()
-                d.B.mult(V, h)
-                h.pointwiseDivide(h, d.c_lumped)
+            if self.vH is not None:                 # the physical velocity C^-1 B Vbar
+                h = d.physical_velocity(V, self._vH_vec)
                 self.vH.x.array[:len(h.array)] = h.array
-                h.destroy()
         for f in (self.uW, self.vH, self.vW):
             if f is not None:
                 f.x.scatter_forward()
         measure = np.where(d.cmeasure > 0, d.cmeasure, 1.0)
         vertex = [(self.s1, lam / measure), (self.a1, active.astype(float))]
         if self.friction:
-            slip = np.asarray(self.integ.solver.slip, dtype=bool)
             vertex += [(self.src["tangential_stress"], self.integ.lam_t / measure),
-                       (self.src["contact_status"], np.where(active, np.where(slip, 2.0, 1.0), 0.0))]
+                       (self.src["contact_status"], self.integ.contact_status(active))]
         for f, vals in vertex:
             f.x.array[:] = 0.0
             f.x.array[d.q1_of_c] = vals

@@ -205,3 +205,25 @@ def test_both_schemes_balance_momentum_in_both_directions(scheme):
         sustained = np.cumprod(ts["n_active"][1:] == r.info["N_g"]).astype(bool)
         total = ts["energy"] + ts["dissipated"]
         assert sustained.sum() >= 15 and np.diff(total)[sustained].max() < 1e-12 * ts["energy"][0]
+
+
+def test_xdmf_contact_status_and_tangential_stress(mpi_tmp_path):
+    """The file's contact_status at the vertices counts the step's slipping and sticking vertices
+    (n_slip; n_active - n_slip), and tangential_stress is nonzero exactly where they are in
+    contact (Coulomb: no friction off contact)."""
+    dt, n = 2e-5, 20
+    out = mpi_tmp_path / "xdmf"
+    r = simulate(resting_block(), pair="P2/P1", dt=dt, T=n * dt, friction="coulomb", mu=0.3, out=out, write_every=n)
+    res = None
+    if COMM.rank == 0:
+        from sdm_dolfinx.post.xdmf import read_xdmf
+        s = read_xdmf(out)
+        bottom = s.vertex_mask() & np.isclose(s.points[:, 1], 0.0)
+        status = s.field("contact_status", n * dt)[bottom]
+        stress = s.field("tangential_stress", n * dt)[bottom]
+        res = (sorted(s.fields), int(np.sum(status == 2)), int(np.sum(status == 1)),
+               bool(np.all((stress != 0) == (status > 0))), bool(np.all(np.isin(status, (0.0, 1.0, 2.0)))))
+    fields, slipping, sticking, where, codes = COMM.bcast(res, root=0)
+    assert "contact_status" in fields and "tangential_stress" in fields and codes and where
+    assert slipping == r.timeseries["n_slip"][-1] > 0
+    assert sticking == r.timeseries["n_active"][-1] - r.timeseries["n_slip"][-1]
