@@ -83,6 +83,20 @@ def check(friction, mu, threshold):
     return errors
 
 
+#: the step solver and linear strategies a frictional step can run with (its own semi-smooth
+#: Newton method through one factorisation of the step matrix)
+SOLVERS, LINEAR = ("ssn",), ("auto", "schur")
+
+
+def check_solver(friction, vi_solver, linear):
+    """Messages (a list) when the run options ask friction for a step solver it has not."""
+    if (friction or "none") == "none" or (vi_solver in SOLVERS and linear in LINEAR):
+        return []
+    return [f"friction {friction} is solved by its own semi-smooth Newton method through one factorisation of the "
+            f"step matrix (vi_solver {' or '.join(SOLVERS)}, linear {' or '.join(LINEAR)}), not vi_solver "
+            f"{vi_solver} with linear {linear}"]
+
+
 def make(friction=None, mu=None, threshold=None):
     """The :class:`Friction` of the run options (ValueError, one line, when they do not agree)."""
     errors = check(friction, mu, threshold)

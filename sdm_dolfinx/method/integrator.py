@@ -48,7 +48,7 @@ class Integrator:
         options: extra PETSc options for the step solver.
         friction: a :class:`~sdm_dolfinx.method.friction.Friction` (None: frictionless); with
             friction the step solver is :class:`~sdm_dolfinx.solvers.friction.FrictionalNewton`
-            (``vi_solver`` "ssn" only; ``linear`` does not apply: it factorises K once).
+            (``vi_solver`` "ssn", ``linear`` "auto" or "schur": it factorises K once; others are refused).
     """
 
     def __init__(self, discretisation, scheme="midpoint", dt=1e-3, vi_solver="ssn", linear="auto", options=None,
@@ -63,36 +63,34 @@ class Integrator:
         self.block = discretisation.mass == "consistent"
         self.nW = discretisation.A.getLocalSize()[0]
         self._build()
-        # a factorisation of K = alpha^2 B^T D^-1 B + A is cheaper through the sparser
-        # augmented matrix [A, alpha B^T; alpha B, -D] when M is much denser than A (P2/P1)
-        self.factor_matrix = None
+        self.friction = friction if friction is not None and friction.on else None
+        refused = _friction.check_solver(self.friction and self.friction.law, vi_solver, linear)
+        if refused:
+            raise DiscretisationError(refused[0])
         if linear == "auto":
             linear = choose_strategy(discretisation.num_constraints, not self.block)
-        if (vi_solver == "ssn" and linear in ("schur", "cg-factor") and not self.block
-                and discretisation.B is not None and discretisation.c_lumped is not None):
+        # a factorisation of K = alpha^2 B^T D^-1 B + A is cheaper through the sparser
+        # augmented matrix [A, alpha B^T; alpha B, -D] when M is much denser than A (P2/P1)
+        factorised = self.friction is not None or (vi_solver == "ssn" and linear in ("schur", "cg-factor"))
+        self.factor_matrix = None
+        if factorised and not self.block and discretisation.B is not None and discretisation.c_lumped is not None:
             d = discretisation
             self.factor_matrix = sparse_factor_matrix(self.K, d.A, d.B, d.c_lumped, self.alpha, d.ddofs)
-        self.friction = friction if friction is not None and friction.on else None
         self.slip = None
         if self.friction is None:
             self.solver = make_vi_solver(vi_solver, self.K, discretisation.cdofs, discretisation.lb,
                                          symmetric_positive=not self.block, linear=linear, options=options,
                                          factor_matrix=self.factor_matrix)
         else:
-            self._friction_solver(vi_solver, options)
+            self._friction_solver(options)
         self.vi_solver = vi_solver
 
-    def _friction_solver(self, vi_solver, options):
+    def _friction_solver(self, options):
         d, f = self.discretisation, self.friction
-        if vi_solver != "ssn":
-            raise DiscretisationError(f"friction {f.law} is solved by the semi-smooth Newton method (vi_solver "
-                                      f"'ssn'), not {vi_solver!r}")
         try:
             self.tdofs, thresholds = _friction.contact_dofs(d, f)
         except ValueError as e:
             raise DiscretisationError(str(e)) from None
-        if self.factor_matrix is None and not self.block and d.B is not None and d.c_lumped is not None:
-            self.factor_matrix = sparse_factor_matrix(self.K, d.A, d.B, d.c_lumped, self.alpha, d.ddofs)
         self.solver = FrictionalNewton(self.K, d.cdofs, self.tdofs, d.lb, law=f.law, mu=f.mu, threshold=thresholds,
                                        symmetric_positive=not self.block, options=options,
                                        factor_matrix=self.factor_matrix)

@@ -163,6 +163,7 @@ def check_options(o):
         errors.append(f"unknown linear strategy {o['linear']!r}; choose one of {', '.join(LINEAR_STRATEGIES)}")
     errors += quadrature.check(o["quadrature_degree"])
     errors += friction.check(o["friction"], o["mu"], o["tresca_threshold"])
+    errors += friction.check_solver(o["friction"], o["vi_solver"], o["linear"])
     if errors:
         raise RunInputError("; ".join(errors))
 

@@ -19,6 +19,7 @@ import ufl
 from dolfinx import fem, mesh as dmesh
 
 from sdm_dolfinx.method.discretisation import Discretisation
+from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.method.friction import make
 from sdm_dolfinx.method.integrator import Integrator
 from sdm_dolfinx.problems import Problem
@@ -149,9 +150,12 @@ def test_zero_friction_coefficient_is_the_frictionless_run():
     ({"friction": "tresca", "mu": 0.3}, "mu is for friction coulomb"),
     ({"friction": "coulomb", "mu": -1.0}, "mu must be a number >= 0"),
     ({"friction": "stiction", "mu": 0.3}, "unknown friction law"),
+    ({"friction": "coulomb", "mu": 0.3, "linear": "amg"}, "not vi_solver ssn with linear amg"),
+    ({"friction": "tresca", "tresca_threshold": 0.1, "vi_solver": "vinewtonrsls"}, "not vi_solver vinewtonrsls"),
 ])
 def test_friction_options_that_do_not_agree_are_refused(opts, message):
-    with pytest.raises(ValueError, match=message):
+    """Also a step solver friction has not: the option would otherwise be ignored."""
+    with pytest.raises((ValueError, DiscretisationError), match=message):
         simulate(resting_block(n=2), pair="P2/P1", dt=1e-5, T=1e-5, **opts)
 
 
@@ -227,3 +231,14 @@ def test_xdmf_contact_status_and_tangential_stress(mpi_tmp_path):
     assert "contact_status" in fields and "tangential_stress" in fields and codes and where
     assert slipping == r.timeseries["n_slip"][-1] > 0
     assert sticking == r.timeseries["n_active"][-1] - r.timeseries["n_slip"][-1]
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="the command line prints on rank 0 only: checked on 1 rank")
+def test_command_line_refuses_a_linear_strategy_friction_has_not(tmp_path, capsys):
+    """One line, exit 2, nothing written: --linear amg would otherwise be ignored."""
+    from sdm_dolfinx.cli import main
+    out = tmp_path / "run"
+    assert main(["block", "--friction", "coulomb", "--mu", "0.3", "--linear", "amg", "--T", "1e-3",
+                 "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "not vi_solver ssn with linear amg" in err and err.count("\n") == 1 and not out.exists()
