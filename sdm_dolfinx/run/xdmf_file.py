@@ -30,6 +30,19 @@ def match_rows(saved, mine, what):
     return idx
 
 
+def match_cells(saved, mine, node_map, what):
+    """Index into ``mine`` (cells as node numbers of this run) of each cell of ``saved`` (the
+    file's, in the file's node numbers; ``node_map[i]``: this run's node of the file's node i),
+    or raise ValueError: the cell values of a restart go in the file's cell order."""
+    inverse = np.empty(len(node_map), dtype=np.int64)
+    inverse[node_map] = np.arange(len(node_map))
+    index = {tuple(sorted(c)): k for k, c in enumerate(inverse[mine])}
+    try:
+        return np.array([index[tuple(sorted(c))] for c in saved], dtype=np.int64)
+    except KeyError:
+        raise ValueError(f"{what}: the cells stored in the file are not this run's") from None
+
+
 _XINCLUDE = ("<xi:include xpointer=\"xpointer(/Xdmf/Domain/Grid[@GridType='Uniform'][1]/*[self::Topology or "
              "self::Geometry])\" />")
 
@@ -91,7 +104,7 @@ class XDMFWriter:
         self.cell_fields = {n for n, (_, k) in src.items() if k == 0}
         self._spaces = {}
         self.out = {n: self._route(f, k) for n, (f, k) in src.items() if k != 0}
-        self.map = None
+        self.map = self.cell_map = None
         self.steps = list(steps or [])
         self.xml_inode = None
         self._grids = {}
@@ -105,6 +118,9 @@ class XDMFWriter:
             with journal.h5("r") as h5:
                 self.map = match_rows(pad3(np.asarray(h5["Mesh/mesh/geometry"])), pad3(self.nodes.geometry),
                                        f"{self.path.with_suffix('.h5')} (mesh)")
+                if self.map is not None and self.cell_fields:
+                    self.cell_map = match_cells(np.asarray(h5["Mesh/mesh/topology"]), self.nodes.topology, self.map,
+                                                f"{self.path.with_suffix('.h5')} (cells)")
                 missing = [name for n in self.steps for name in self._datasets(n) if name not in h5]
                 if missing:
                     raise ValueError(f"{self.path.with_suffix('.h5')}: {missing[0]} is missing (written by an "
@@ -177,7 +193,8 @@ class XDMFWriter:
             return None
         if vals.shape[1] > 1:                   # vectors padded to 3 components, as dolfinx does
             vals = pad3(vals)
-        return vals if (self.map is None or name in self.cell_fields) else vals[self.map]
+        order = self.cell_map if name in self.cell_fields else self.map
+        return vals if order is None else vals[order]
 
     def write(self, U, V, lam, active, n):
         """Write the fields of step ``n`` (collective); the contact stress is each constrained
