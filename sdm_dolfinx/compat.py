@@ -29,13 +29,19 @@ def element(family, cell, degree, shape=()):
     return ufl.FiniteElement(family, cell, degree)
 
 
+#: the degree of a simplex's bubble (the product of its barycentric coordinates)
+BUBBLE_DEGREE = {"interval": 2, "triangle": 3, "tetrahedron": 4}
+
+
 def p1_bubble_element(cell, shape=()):
-    """P1 enriched with the cubic bubble (the paper's P1+)."""
+    """P1 enriched with the cell's bubble (the paper's P1+: the cubic bubble of a triangle; on an
+    interval the quadratic one, basix's "Bubble" of degree 2, so that P1+ spans P2 there)."""
+    degree = BUBBLE_DEGREE[cell]
     if NEW_API:  # pragma: no cover
         e = basix.ufl.enriched_element([basix.ufl.element("Lagrange", cell, 1),
-                                        basix.ufl.element("Bubble", cell, 3)])
+                                        basix.ufl.element("Bubble", cell, degree)])
         return basix.ufl.blocked_element(e, shape=shape) if shape else e
-    e = ufl.FiniteElement("Lagrange", cell, 1) + ufl.FiniteElement("Bubble", cell, 3)
+    e = ufl.FiniteElement("Lagrange", cell, 1) + ufl.FiniteElement("Bubble", cell, degree)
     if shape:
         return ufl.VectorElement(e, dim=shape[0])
     return e

@@ -4,8 +4,9 @@ a pair and a mesh (:mod:`sdm_dolfinx.post.infsup`).
 The problem is a registered one (the first argument or ``--problem NAME``, default membrane)
 or a user's problem file (``--problem-file FILE``); its options are those it declares, as for
 the run commands. ``--sweep`` runs a sequence of meshes (the membrane's ``--N``, the disc's
-``--level``). Bad input: one line on stderr, exit status 2; a measurement that cannot be
-made: exit status 1.
+``--level``). ``--constrain nodes`` measures (7) with the constraint at every dof of W^h on the
+constrained boundary (P2's mid-edge nodes too) instead of the vertices (eq. (13)). Bad input: one
+line on stderr, exit status 2; a measurement that cannot be made: exit status 1.
 """
 import sys
 from pathlib import Path
@@ -17,6 +18,7 @@ from sdm_dolfinx.cli.common import (Parser, UsageError, check_writable, nonnegat
                                     positive_float, positive_int, report_usage_error, say_error)
 from sdm_dolfinx.cli.params import add_param_options, param_values
 from sdm_dolfinx.method import schemes
+from sdm_dolfinx.method.discretisation import CONSTRAIN
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.method.pairs import PAIRS
 from sdm_dolfinx.mpiutil import atomic_write_text, json_text
@@ -87,6 +89,10 @@ def build_parser(spec):
                    help=f"run a sequence of meshes: values of --{param} (default {' '.join(map(str, default_values))})"
                         " and print beta against h" if default_values else
                         "run a sequence of meshes (the membrane's --N, the disc's --level; not for this problem)")
+    p.add_argument("--constrain", default="vertices", choices=CONSTRAIN,
+                   help="where K^h acts: the constrained vertices (eq. (13), default) or every dof of W^h on the "
+                        "constrained boundary (nodes: P2's mid-edge nodes too; pairs whose W^h has no other "
+                        "boundary dofs than the vertices, P1 and P1+, are skipped with --pair all)")
     p.add_argument("--coulomb-bound", action="store_true",
                    help="also measure the Coulomb coefficient below which the frictional step problem stays "
                         "well-posed (2-D vector problems: the Newton matrix with every constrained vertex in "
@@ -118,6 +124,7 @@ def check(args, spec):
     if bad:
         errors.append(f"unknown pair {bad[0]!r}; choose from {', '.join(PAIRS)} or all")
     args.pair = list(dict.fromkeys(pairs))
+    errors += _check_nodes(args, pairs == list(PAIRS))
     try:
         values = spec.values(given, cli=True)
         if args.sweep is None:
@@ -143,6 +150,23 @@ def check(args, spec):
         args.png = args.png or Path("output") / "inspect" / f"{spec.name}-beta.png"
         check_writable(args.png, "--png")
     return given
+
+
+def _check_nodes(args, every):
+    """Messages for --constrain nodes with pairs whose W^h has only vertex dofs on the boundary (P1,
+    P1+): skipped (``args.skipped``) when every pair was asked for, an error when named."""
+    args.skipped = []
+    if args.constrain != "nodes":
+        return []
+    errors = ["--coulomb-bound measures the vertex constraint: drop --constrain nodes"] if args.coulomb_bound else []
+    vertex_only = [q for q in args.pair if q in PAIRS and not (PAIRS[q].w[0] == "P" and PAIRS[q].w[1] >= 2)]
+    if every:
+        args.skipped = vertex_only
+        args.pair = [q for q in args.pair if q not in vertex_only]
+    elif vertex_only:
+        errors.append(f"--constrain nodes is --constrain vertices for pair {vertex_only[0]} (its W^h has no dof on "
+                      f"the constrained boundary but at the vertices); use a P2 displacement pair or drop it")
+    return errors
 
 
 def _check_sweep(args, spec, given):
@@ -215,11 +239,14 @@ def measure_all(spec, given, args, comm):
         values = dict(given) if value is None else {**given, _sweep_of(spec)[0]: value}
         return spec.problem(comm, **values)
 
+    if args.skipped:
+        say(f"--constrain nodes: skipped {', '.join(args.skipped)} (W^h has no dof on the constrained boundary "
+            f"but at the vertices: the same as --constrain vertices)")
     if args.sweep is None:
         problem = make_problem()
         rows = []
         for pair in args.pair:
-            rows.append(inspect(problem, pair, tol=args.tol, dense_max=args.dense_max))
+            rows.append(inspect(problem, pair, tol=args.tol, dense_max=args.dense_max, constrain=args.constrain))
             say(report(rows[-1]))
             if args.coulomb_bound:
                 rows[-1]["coulomb_bound"] = coulomb_bound(problem, pair, args.dt, args.scheme)
@@ -230,7 +257,7 @@ def measure_all(spec, given, args, comm):
         f"beta of condition (7), tolerance {args.tol:.1e}")
     say(SWEEP_HEADER.replace("param", param))
     return sweep(make_problem, args.sweep, args.pair, tol=args.tol, dense_max=args.dense_max,
-                 progress=lambda r: say(sweep_line(r)))
+                 progress=lambda r: say(sweep_line(r)), constrain=args.constrain)
 
 
 def write_outputs(rows, spec, args, argv, comm):
@@ -242,6 +269,7 @@ def write_outputs(rows, spec, args, argv, comm):
     if args.json is not None:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         doc = {"command": " ".join([PROG] + argv), "ranks": comm.size, "tolerance": args.tol,
+               "constrain": args.constrain, "skipped": args.skipped,
                "dense_max": args.dense_max, "versions": compat.versions(), "results": rows}
         atomic_write_text(args.json, json_text(doc, indent=1))
         print(f"wrote {args.json}", flush=True)

@@ -14,12 +14,15 @@ from dolfinx import fem, mesh as dmesh
 from sdm_dolfinx import compat
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.method.frozen import FrozenData
-from sdm_dolfinx.method import quadrature
+from sdm_dolfinx.method import masses, quadrature
 from sdm_dolfinx.method.pairs import MASS_TREATMENTS, get_pair
 
 #: an initial displacement below the bound by more than this times max(1, max |bound|) at a
 #: constrained vertex is refused (the scale of simulate's constraint_tol)
 INITIAL_TOL = 1e-8
+#: where K^h acts: at the constrained vertices (eq. (13)), or at every dof of W^h on the
+#: constrained boundary (P2's mid-edge nodes too)
+CONSTRAIN = ("vertices", "nodes")
 
 
 def vertex_to_dof(V, vertices):
@@ -31,7 +34,7 @@ def vertex_to_dof(V, vertices):
     tdim = msh.topology.dim
     msh.topology.create_connectivity(tdim, 0)
     c2v = msh.topology.connectivity(tdim, 0)
-    nv_cell = tdim + 1                                      # simplices (triangles, tetrahedra)
+    nv_cell = tdim + 1                                      # simplices (intervals, triangles, tetrahedra)
     cell_vertices = c2v.array.reshape(-1, nv_cell)          # (also on a rank without cells)
     dofs = compat.dofmap_list(V)
     nverts = msh.topology.index_map(0).size_local + msh.topology.index_map(0).num_ghosts
@@ -63,23 +66,34 @@ class Discretisation:
         problem: a :class:`sdm_dolfinx.problem.Problem`.
         pair: a pair name (``"P2/P1"``) or :class:`sdm_dolfinx.pairs.Pair`.
         mass: how C is treated: ``"diagonal"`` (P0: exact), ``"lumped"`` (P1, row sums),
-            ``"consistent"`` (P1: the (U, V) block system, M never formed) or ``"standard"``
-            (H^h = W^h). ``None`` picks the pair's default.
+            ``"consistent"`` (P1: the (U, V) block system, M never formed); for a standard pair
+            (H^h = W^h) its consistent mass ``"standard"``, the row-sum lumped ``"row-sum"`` or
+            Khenous-Laborde-Renard's ``"redistributed"`` (no inertia at the constrained nodes,
+            :mod:`.masses`). ``None`` picks the pair's default.
         quadrature_degree: the quadrature degree of every form (A, L, B, C, M, the lumped
             measure): None (automatic: UFL's exact estimate on affine simplices, 12 on curved
             cells, see :mod:`.quadrature`), ``"estimated"`` (UFL's estimate everywhere: runs
             before the option) or an integer; the value used is :attr:`quadrature_degree`.
+        constrain: ``"vertices"`` (eq. (13): K^h acts at the constrained vertices) or ``"nodes"``
+            (at every dof of W^h on the constrained boundary, :meth:`_boundary`: P2's mid-edge
+            nodes too; each node's stress measure is then the boundary's row sum in W^h,
+            :func:`.masses.nodal_measure`). ``"nodes"`` is refused where it names the vertices
+            only (P1, P1+, and every pair in 1-D, whose boundary is a vertex).
 
     Raises:
         ProblemInputError: the Problem's own validation (:meth:`Problem.validate`).
-        DiscretisationError: the pair has no element on the mesh's cell type.
+        DiscretisationError: the pair has no element on the mesh's cell type; ``constrain="nodes"``
+            where it is "vertices"; a modified mass the pair or mesh cannot have (:mod:`.masses`).
     """
 
-    def __init__(self, problem, pair, mass=None, quadrature_degree=None):
+    def __init__(self, problem, pair, mass=None, quadrature_degree=None, constrain="vertices"):
         problem.validate()          # a field may have been changed since the Problem was made
         bad = quadrature.check(quadrature_degree)
         if bad:
             raise ValueError(bad[0])
+        if constrain not in CONSTRAIN:
+            raise ValueError(f"constrain must be one of {', '.join(CONSTRAIN)} (got {constrain!r})")
+        self.constrain = constrain
         self.problem = problem
         self.pair = get_pair(pair) if isinstance(pair, str) else pair
         self.mass = mass or self.pair.default_mass()
@@ -101,6 +115,12 @@ class Discretisation:
         self._constraints()
         self._dirichlet()
         self._boundary()
+        self.c_vertex = np.ones(len(self.cdofs), dtype=bool)      # which constrained dofs are vertex dofs
+        if constrain == "nodes":
+            self._nodes()
+        if self.mass in masses.MODIFIED:
+            consistent, self.M = self.M, masses.build(self)
+            consistent.destroy()
         self.frozen = FrozenData(problem, self._a_ufl, self._l_ufl, self.cx if self.num_constraints else None,
                                  self._dirichlet_x(), self.comm)
 
@@ -110,7 +130,7 @@ class Discretisation:
         u, w = ufl.TrialFunction(self.W), ufl.TestFunction(self.W)
         rho = fem.Constant(p.mesh, PETSc.ScalarType(p.rho))
         self._a_ufl, self._l_ufl = p.a(u, w), p.l(w)
-        if self.mass == "standard":
+        if self.pair.standard:                  # the consistent mass (modified after the constraints)
             mass = {"M": rho * ufl.inner(u, w) * ufl.dx}
         else:
             q, r = ufl.TestFunction(self.H), ufl.TrialFunction(self.H)
@@ -127,7 +147,7 @@ class Discretisation:
         self.B = self.C = self.c_lumped = self.M = None
         for name, m in mass.items():
             setattr(self, name, compat.assemble_matrix(self.form(m)))
-        if self.mass in ("standard", "consistent"):
+        if self.pair.standard or self.mass == "consistent":
             return               # consistent: M never formed, the integrator solves the (U, V) block system
         # C diagonal: exact for P0 (C is diagonal), row-sum lumping for P1
         ones = self.C.createVecRight()
@@ -153,28 +173,8 @@ class Discretisation:
         return compat.assemble_vector_into(out, self.L_form)
 
     def mass_product(self):
-        """The fastest ``mult(x, y)``: y = M x for this discretisation.
-
-        M itself, or B^T (D^-1 (B x)) when M = B^T D^-1 B is much denser than B (P2/P1: 3
-        products per step with M cost as much as the step's solve; through B, a third), or
-        for the consistent variant (M never formed) B^T C^-1 B x with a solve with C.
-        """
-        if self.M is None:
-            return self._consistent_mass_mult
-        if self.B is None or self.c_lumped is None:
-            return self.M.mult
-        local = PETSc.Mat.InfoType.LOCAL
-        nz = self.comm.allreduce(np.array([self.M.getInfo(local)["nz_used"], self.B.getInfo(local)["nz_used"]]),
-                                 op=MPI.SUM)
-        if nz[0] <= 3 * nz[1]:
-            return self.M.mult
-        h = self.B.createVecLeft()
-
-        def mult(x, y):
-            self.B.mult(x, h)
-            h.pointwiseDivide(h, self.c_lumped)
-            self.B.multTranspose(h, y)
-        return mult
+        """The fastest ``mult(x, y)``: y = M x for this discretisation (:func:`.masses.product`)."""
+        return masses.product(self)
 
     def mass_mult(self, x, y):
         """y = M x (also for the consistent variant, through a solve with C)."""
@@ -314,6 +314,26 @@ class Discretisation:
         self.blb = np.asarray(p.lower_bound(self.bx), dtype=PETSc.ScalarType).reshape(-1)
         self.num_boundary_dofs = self.comm.allreduce(len(self.bdofs), op=MPI.SUM)
 
+    def _nodes(self):
+        """constrain="nodes": K^h at every dof of :meth:`_boundary` too (P2's mid-edge nodes), each with
+        its bound at the node and the boundary's measure lumped in W^h (:func:`.masses.nodal_measure`);
+        ``cverts`` is -1 and ``c_vertex`` False at a dof that is not a vertex's; ``q1_of_c`` keeps the Q1 dofs
+        of the vertex ones (``values[c_vertex]`` go there)."""
+        W, msh = self.W, self.problem.mesh
+        if not any(W.dofmap.dof_layout.num_entity_dofs(k) for k in range(1, msh.topology.dim)):
+            raise DiscretisationError(
+                f"constrain='nodes' is constrain='vertices' for pair {self.pair.name} on {compat.cell_name(msh)} "
+                f"meshes: W^h has no dof on the constrained boundary but at its vertices; use constrain='vertices'")
+        dofs = np.union1d(self.cdofs, self.bdofs).astype(np.int32)
+        self.c_vertex = np.isin(dofs, self.cdofs)             # both sorted: the vertex dofs in cdofs' order
+        verts = np.full(len(dofs), -1, dtype=np.int32)
+        verts[self.c_vertex] = self.cverts
+        self.cdofs, self.cverts = dofs, verts
+        self.cx = self._dof_x()[dofs // W.dofmap.index_map_bs].T if dofs.size else np.zeros((3, 0))
+        self.lb = np.asarray(self.problem.lower_bound(self.cx), dtype=PETSc.ScalarType).reshape(-1)
+        self.cmeasure = masses.nodal_measure(self, dofs)
+        self.num_constraints = self.comm.allreduce(len(dofs), op=MPI.SUM)
+
     def _dirichlet_x(self):
         """Coordinates (3, n) of the owned Dirichlet dofs (None without Dirichlet data)."""
         if self.problem.dirichlet_facets is None:
@@ -363,7 +383,9 @@ class Discretisation:
         where = ", ".join(f"{c:.6g}" for c in x[:self.problem.mesh.geometry.dim])
         raise DiscretisationError(
             f"problem {self.problem.name!r}: the initial displacement is below the bound at {count} constrained "
-            f"vertices, by up to {-worst:.3g} at ({where}) (tolerance {tol:.1e}); u0 must satisfy the constraint")
+            f"{'vertices' if self.constrain == 'vertices' else 'nodes'}, by up to {-worst:.3g} at ({where}) (tolerance "
+            f"{tol:.1e}); u0 must satisfy the constraint"
+            + ("" if self.constrain == "vertices" else " at every constrained node (constrain nodes)"))
 
     def rigid_vector(self, component):
         """The vector of W that represents the constant unit field in ``component``."""

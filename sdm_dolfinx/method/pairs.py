@@ -7,8 +7,13 @@ from dataclasses import dataclass
 from sdm_dolfinx import compat
 from sdm_dolfinx.method.errors import DiscretisationError
 
-#: how C = (psi_i, psi_j) enters M = B^T C^-1 B
-MASS_TREATMENTS = ("standard", "diagonal", "lumped", "consistent")
+#: how C = (psi_i, psi_j) enters M = B^T C^-1 B (SDM pairs), or which mass a standard pair
+#: (H^h = W^h) uses: its consistent mass, the row-sum lumped mass or the redistributed mass of
+#: Khenous, Laborde and Renard (2008), see :mod:`sdm_dolfinx.method.masses`
+MASS_TREATMENTS = ("standard", "diagonal", "lumped", "consistent", "row-sum", "redistributed")
+
+#: every cell type a pair may name in :attr:`Pair.cells` (the method wants simplices)
+SIMPLEX_CELLS = ("interval", "triangle", "tetrahedron")
 
 
 @dataclass(frozen=True)
@@ -20,14 +25,18 @@ class Pair:
         w: ``(family, degree)`` of W^h, family ``"P+"`` meaning P1 + cubic bubble.
         h: ``(family, degree)`` of H^h, or ``None`` when H^h = W^h (standard Galerkin).
         well_posed: what the paper says (condition (7) proved, observed, or failing).
-        cells: the cell types its elements exist on (the rest of the method wants simplices;
-            P1+ is P1 + the cubic bubble, a triangle's: a tetrahedron's bubble has degree 4).
+        cells: the cell types its elements exist on (the rest of the method wants simplices).
+            P1+ is P1 + the cell's bubble: degree 3 on a triangle (the paper's), degree 2 on an
+            interval (x (1 - x), basix's "Bubble" of degree 2), where P1 + bubble spans exactly
+            P2, so that in 1-D P1+/P0 is the pair P2/P0 and P1+/P1 the pair P2/P1 written in a
+            hierarchical basis (same W^h, H^h and vertex constraints: the same discrete solution);
+            a tetrahedron's bubble has degree 4 and is not offered.
     """
     name: str
     w: tuple
     h: tuple
     well_posed: str
-    cells: tuple = ("triangle", "tetrahedron")
+    cells: tuple = SIMPLEX_CELLS
 
     def check_cell(self, cell):
         """DiscretisationError (one line, the pairs available on ``cell``) if this pair has no element there."""
@@ -36,7 +45,7 @@ class Pair:
             raise DiscretisationError(
                 f"pair {self.name} is not available on {cell} meshes; "
                 + (f"the pairs available on {cell} meshes: {', '.join(there)}" if there
-                   else f"no pair is: the method needs triangles or tetrahedra"))
+                   else "no pair is: the method needs intervals, triangles or tetrahedra"))
 
     def w_element(self, cell, shape=()):
         """The element of W^h (displacement) on ``cell`` with value shape ``shape``."""
@@ -60,25 +69,29 @@ class Pair:
         return self.h is None
 
     def default_mass(self):
-        """The C treatment used unless asked otherwise: exact diagonal (P0), lumped (P1)."""
+        """The C treatment used unless asked otherwise: exact diagonal (P0), lumped (P1); the
+        consistent mass of W^h for a standard pair."""
         if self.standard:
             return "standard"
         return "diagonal" if self.h[1] == 0 else "lumped"
 
     def allowed_masses(self):
-        """The C treatments this pair accepts (see :data:`MASS_TREATMENTS`)."""
+        """The C treatments (SDM pairs) or masses (standard pairs) this pair accepts (see
+        :data:`MASS_TREATMENTS`): a standard pair's consistent mass, its row-sum lumped mass
+        (refused at assembly where row sums vanish: P2 on triangles and tetrahedra) and the
+        redistributed mass (:mod:`sdm_dolfinx.method.masses`)."""
         if self.standard:
-            return ("standard",)
+            return ("standard", "row-sum", "redistributed")
         if self.h[1] == 0:
             return ("diagonal",)
         return ("lumped", "consistent")
 
 
 PAIRS = {p.name: p for p in [
-    Pair("P1+/P0", ("P+", 1), ("P", 0), "proved (Lemma 2)", cells=("triangle",)),
+    Pair("P1+/P0", ("P+", 1), ("P", 0), "proved (Lemma 2)", cells=("interval", "triangle")),
     Pair("P1/P0", ("P", 1), ("P", 0), "no: dim H >= dim W - N_g"),
     Pair("P1/P1", ("P", 1), None, "no: standard Galerkin, Ker(B) = {0}"),
-    Pair("P1+/P1", ("P+", 1), ("P", 1), "observed (no proof in the paper)", cells=("triangle",)),
+    Pair("P1+/P1", ("P+", 1), ("P", 1), "observed (no proof in the paper)", cells=("interval", "triangle")),
     Pair("P2/P1", ("P", 2), ("P", 1), "observed (no proof in the paper)"),
     Pair("P2/P2", ("P", 2), None, "no: standard Galerkin, Ker(B) = {0}"),
 ]}

@@ -8,10 +8,12 @@ be surjective on F = Ker(B):
 with |.| the Euclidean norm of coefficient vectors, so beta depends on the basis scaling (dolfinx's P1+
 basis, for instance, has vertex functions that vanish at the centroid). Since sup_{W in F} Q^T G W / |W|
 = |P_F G^T Q|, beta^2 is the smallest eigenvalue of S = G P_F G^T, P_F the orthogonal projector on
-Ker(B). Here G's rows are unit vectors at the constrained vertex dofs (eq. (13)), so S is the principal
-submatrix of P_F at those dofs. W^h is the space without the Dirichlet dofs (section 3: "A is the set of
-vertices not on Gamma_D"), so B (and G) lose those columns; H^h keeps all its dofs, except in standard
-Galerkin where H^h = W^h.
+Ker(B). Here G's rows are unit vectors at the constrained dofs -- the constrained vertices (eq. (13)), or
+with ``constrain="nodes"`` every dof of W^h on the constrained boundary (P2's mid-edge nodes too) -- so S
+is the principal submatrix of P_F at those dofs (so beta with the vertex constraint is at least beta with
+the node constraint: Cauchy's interlacing). W^h is the space without the Dirichlet dofs (section 3: "A is
+the set of vertices not on Gamma_D"), so B (and G) lose those columns; H^h keeps all its dofs, except in
+standard Galerkin where H^h = W^h.
 
 Two ways to compute it (the report says which ran); all linear algebra runs on rank 0 on the gathered
 global matrices, so 1 and 2 ranks give the same numbers up to round-off:
@@ -271,15 +273,18 @@ def _verdict(r, tol):
 
 
 # ---------------------------------------------------------------------------------- MPI driver
-def inspect(problem, pair, tol=TOL, dense_max=DENSE_MAX):
-    """Condition (7) for ``problem`` discretised with ``pair`` (a name or a Pair); the same dict on every rank.
+def inspect(problem, pair, tol=TOL, dense_max=DENSE_MAX, constrain="vertices"):
+    """Condition (7) for ``problem`` discretised with ``pair`` (a name or a Pair), the constraint K^h
+    at ``constrain`` (``"vertices"``, eq. (13), or ``"nodes"``: every dof of W^h on the constrained
+    boundary, see :class:`~sdm_dolfinx.method.discretisation.Discretisation`); the same dict on every rank.
 
     Keys: dim_W (W^h, Dirichlet dofs removed), dim_W_total, n_dirichlet, dim_H, N_g, rank_B, dim_ker_B,
     B_surjective, B_injective, rank_M, M_singular, count_condition (dim H <= dim W - N_g),
-    kernel_condition (dim Ker(B) >= N_g), beta (None if N_g = 0), method, tolerance, verdict, reason, h.
+    kernel_condition (dim Ker(B) >= N_g), beta (None if N_g = 0), method, tolerance, verdict, reason, h,
+    constrain.
     """
     pair = get_pair(pair) if isinstance(pair, str) else pair
-    disc = Discretisation(problem, pair)
+    disc = Discretisation(problem, pair, constrain=constrain)
     comm = disc.comm
     h = cell_diameter(problem.mesh)
     B, C, cidx, n_dir = operators(disc)
@@ -297,16 +302,16 @@ def inspect(problem, pair, tol=TOL, dense_max=DENSE_MAX):
     result = comm.bcast(result, root=0)
     result.update(pair=pair.name, paper=pair.well_posed, problem=problem.name,
                   parameters=dict(problem.parameters), h=h, n_dirichlet=n_dir,
-                  dim_W_total=result["dim_W"] + n_dir, ranks=comm.size)
+                  dim_W_total=result["dim_W"] + n_dir, ranks=comm.size, constrain=constrain)
     return result
 
 
-def sweep(make_problem, values, pairs, tol=TOL, dense_max=DENSE_MAX, progress=None):
+def sweep(make_problem, values, pairs, tol=TOL, dense_max=DENSE_MAX, progress=None, constrain="vertices"):
     """inspect() for each mesh ``make_problem(value)`` and each pair: a list of result dicts."""
     rows = []
     for v in values:
         for pair in pairs:
-            r = inspect(make_problem(v), pair, tol=tol, dense_max=dense_max)
+            r = inspect(make_problem(v), pair, tol=tol, dense_max=dense_max, constrain=constrain)
             r["sweep_value"] = v
             rows.append(r)
             if progress:

@@ -7,6 +7,12 @@ def _fmt_beta(b):
     return "inf" if b is None else f"{b:.6g}"
 
 
+#: what the report says of where K^h acts, by ``constrain``
+WHERE = {"vertices": "the constraint at the constrained vertices (eq. (13))",
+         "nodes": "the constraint at every dof of W^h on the constrained boundary (constrain='nodes': "
+                  "P2's mid-edge nodes too)"}
+
+
 def report(r):
     """A human-readable block for one result."""
     names = {"N": "N", "level": "level", "h": "mesh size parameter", "diagonal": "diagonal", "mesh_file": "mesh"}
@@ -14,6 +20,7 @@ def report(r):
     where = f"{par}; " if par else ""          # a problem without these parameters (a user's)
     lines = [
         f"{r['problem']} ({where}largest cell diameter {r['h']:.4g}), pair {r['pair']}, {r['ranks']} rank(s)",
+        f"  {WHERE[r.get('constrain', 'vertices')]}",
         f"  dim W^h = {r['dim_W']} (Dirichlet dofs removed: {r['n_dirichlet']}), dim H^h = {r['dim_H']}, "
         f"N_g = {r['N_g']}, dim Ker(B) = {r['dim_ker_B']}",
         f"  count condition dim H^h <= dim W^h - N_g: {r['dim_H']} <= {r['dim_W'] - r['N_g']}: "
@@ -26,7 +33,8 @@ def report(r):
         f"  beta (condition (7), Euclidean norms of coefficient vectors) = {_fmt_beta(r['beta'])}",
         f"  method: {r['method']} ({r['seconds']:.2f} s)",
         f"  verdict: {r['verdict'].upper()} (tolerance beta > {r['tolerance']:.1e}): {r['reason']}",
-        f"  the paper: {r['paper']}",
+        f"  the paper: {r['paper']}" + ("" if r.get("constrain", "vertices") == "vertices" else
+                                        " (with the constraint at the vertices: the paper's K^h, eq. (13))"),
     ]
     return "\n".join(lines)
 

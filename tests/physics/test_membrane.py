@@ -10,8 +10,10 @@ def max_rel_dev(E):
 
 
 def variants():
-    """Every pair with every C treatment it allows."""
-    return [(p, m) for p in PAIRS for m in get_pair(p).allowed_masses()]
+    """Every pair with every C treatment it allows (not the comparison's modified standard masses:
+    the membrane's constraint acts at every interior vertex, where a redistributed mass has no
+    inertia at all; tests/unit/test_masses.py covers them)."""
+    return [(p, m) for p in PAIRS for m in get_pair(p).allowed_masses() if m not in ("row-sum", "redistributed")]
 
 
 @pytest.mark.parametrize("pair,mass", variants())

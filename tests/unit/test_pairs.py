@@ -75,7 +75,7 @@ def test_mass_treatments_follow_h():
         assert pair.default_mass() in allowed and set(allowed) <= set(MASS_TREATMENTS)
         if pair.h is None:
             # H^h = W^h: the consistent mass matrix of W itself, nothing to lump
-            assert pair.standard and allowed == ("standard",)
+            assert pair.standard and allowed == ("standard", "row-sum", "redistributed")
         elif pair.h[1] == 0:
             # P0 basis functions have disjoint supports: C is exactly diagonal
             assert allowed == ("diagonal",) and pair.default_mass() == "diagonal"
