@@ -25,6 +25,7 @@ import ufl
 from dolfinx import fem, mesh as dmesh
 
 from sdm_dolfinx.problems import Param, Problem, ProblemSpec
+from sdm_dolfinx.problems.bar import plane_exact
 
 
 def sigma(u, lame_mu):
@@ -53,7 +54,7 @@ def build(comm, L, H, E, rho, v, Nx, Ny, gap_time):
     lame_mu = E / 2.0
 
     return Problem(
-        name="bar", mesh=msh, shape=(2,), rho=rho,
+        name="plane_bar", mesh=msh, shape=(2,), rho=rho,
         a=lambda u, w: ufl.inner(sigma(u, lame_mu), ufl.sym(ufl.grad(w))) * ufl.dx,
         l=lambda w: ufl.inner(zero, w) * ufl.dx,                  # no body force
         u0=lambda x: np.zeros((2, x.shape[1])),
@@ -84,7 +85,8 @@ PARAMS = (
 )
 
 PROBLEM = ProblemSpec(
-    name="bar", build=build, params=PARAMS, doc=__doc__,
+    name="plane_bar", build=build, params=PARAMS, doc=__doc__,
+    exact=plane_exact,          # nu = 0: the 1-D closed form of the built-in bar (sdm_dolfinx/problems/bar.py)
     # dt = h / (2c) and T = t0 + 1.5 x 2L/c for the defaults (Nx = 40)
     defaults={"pair": "P2/P1", "scheme": "midpoint", "dt": 2.5e-7, "T": 6.5e-5, "time_unit": "s"},
 )

@@ -1,6 +1,7 @@
 """``python -m sdm_dolfinx render RUN_DIR [--png F] [--gif F] [--time T] [--merge]``: pictures
 of a run from its files (pyvista off-screen when installed, else matplotlib) and a
 ParaView-friendly merged XDMF. Works on any run folder, a problem file's included."""
+import sys
 from pathlib import Path
 
 from mpi4py import MPI
@@ -58,6 +59,10 @@ def main(argv=None, comm=MPI.COMM_WORLD):
         print(f"wrote {render.merge_xdmf(src)}")
     if args.png or args.gif:
         series = render.read_xdmf(src)
+        if series.cell_type in ("PolyLine", "Edge_3"):
+            print(f"{PROG}: error: {src} is a 1-D run: render draws 2-D and membrane runs; plot u(x, t) from its "
+                  f"time series, or open solution.xdmf in ParaView (Plot Over Line)", file=sys.stderr)
+            return 2
         if args.png:
             how = render.picture(series, args.png, time=args.time, scale=args.scale, size=args.size or (900, 700))
             print(f"wrote {args.png} ({how})")

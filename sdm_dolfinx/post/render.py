@@ -208,12 +208,12 @@ def _edges(series, u, scale):
 
 
 def _foundation_pv(plotter, series, name):
-    """The rigid support: the line y = 0 (disc) or x = 0 (bar), as a hatched-grey band."""
+    """The rigid support: the line y = 0 (disc) or x = 0 (the demos' plane_bar), as a hatched-grey band."""
     import numpy as np
     pv = _pv_setup()
     p = series.points
     span = np.ptp(p[:, :2], axis=0).max()
-    if name == "bar":
+    if name == "plane_bar":
         box = pv.Box(bounds=(-0.05 * span, 0.0, p[:, 1].min() - 0.3 * np.ptp(p[:, 1]),
                              p[:, 1].max() + 0.3 * np.ptp(p[:, 1]), -0.01, 0.0))
     else:

@@ -81,7 +81,7 @@ def mpl_draw(fig, series, t, scale, kind, clim=None):
         vm = series.von_mises(u)
         pc = ax.tripcolor(xy[:, 0], xy[:, 1], tri, facecolors=vm, cmap="inferno",
                           vmin=0 if clim is None else clim[0], vmax=None if clim is None else clim[1])
-        ax.axhline(0.0, color="k") if series.problem_name != "bar" else ax.axvline(0.0, color="k")
+        ax.axhline(0.0, color="k") if series.problem_name != "plane_bar" else ax.axvline(0.0, color="k")
         ax.set_aspect("equal")
         ax.set_title(f"t = {series.times[series.index(t)]:.4g}")
         fig.colorbar(pc, ax=ax, label="von Mises stress")

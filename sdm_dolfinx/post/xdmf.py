@@ -136,8 +136,9 @@ class Series:
     def vertex_mask(self):
         """True at the nodes that are cell vertices (not the midside nodes of quadratic cells)."""
         import numpy as np
+        corners = {"PolyLine": 2, "Edge_3": 2, "Tetrahedron": 4, "Tetrahedron_10": 4}.get(self.cell_type, 3)
         mask = np.zeros(len(self.points), dtype=bool)
-        mask[self.cells[:, :3].ravel()] = True
+        mask[self.cells[:, :corners].ravel()] = True
         return mask
 
     def linear_triangles(self):

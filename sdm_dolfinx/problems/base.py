@@ -68,6 +68,12 @@ class Problem:
             of ``a(u, w)``, always) that changes during the run stops the run with an error.
             The potential energy is then 1/2 U^T A U - U^T L(t): with a time-dependent load the
             energy changes by the work of the load's change.
+        stress: ``stress(u)`` -> UFL, the Cauchy stress sigma(u) of a vector u (a (gdim, gdim)
+            tensor) or the flux vector of a scalar u, such that a(u, w) = int sigma(u) : grad w dx
+            (the Nitsche contact treatment's boundary term sigma(u) n . n); None when the
+            problem declares none (Nitsche is then refused in one line). The membrane has none
+            on purpose: its constraint acts inside the domain, where Nitsche's boundary term
+            has no meaning.
 
     The constrained boundary, where the time series' ``gap_min_boundary`` looks at every dof
     of W^h (P2 mid-edge nodes included, which the vertex constraint (13) does not hold), is
@@ -95,6 +101,7 @@ class Problem:
     args: dict = field(default_factory=dict)
     source: Optional[str] = None
     time: Optional[object] = None
+    stress: Optional[Callable] = None
 
     def __post_init__(self):
         self.validate()
@@ -105,7 +112,7 @@ class Problem:
         Raises:
             ProblemInputError: a vector u without ``constraint_component`` (or one out of
                 range), a scalar u with a component other than 0, a ``time`` that is not a
-                scalar Constant.
+                scalar Constant, a ``stress`` that is not callable.
         """
         shape, comp = tuple(self.shape), self.constraint_component
         if shape:
@@ -124,6 +131,9 @@ class Problem:
         if unknown:
             raise ProblemInputError(f"problem {self.name!r}: unknown extra_columns {', '.join(map(repr, unknown))}; "
                                     f"choose among {', '.join(EXTRA_COLUMNS)}")
+        if self.stress is not None and not callable(self.stress):
+            raise ProblemInputError(f"problem {self.name!r}: stress must be a callable u -> sigma(u) (UFL), or None "
+                                    f"(got {type(self.stress).__name__})")
         if self.time is not None and np.shape(getattr(self.time, "value", None)) != ():
             raise ProblemInputError(f"problem {self.name!r}: time must be a scalar fem.Constant used by l(w) "
                                     f"(got {type(self.time).__name__})")
@@ -286,6 +296,12 @@ class ProblemSpec:
             and a run that would not fit is refused before it starts
             (:func:`sdm_dolfinx.run.launch.estimate_memory`).
         source: the file that declared it (None for a built-in problem).
+        exact: ``exact(problem) -> ExactSolution`` for a problem with a closed form (the
+            comparison of methods measures errors against it), or None: an object with
+            ``displacement(x, t)``, ``velocity(x, t)``, ``strain(x, t)`` (x of shape (3, n)
+            as dolfinx gives it; vectorised), ``contact_stress(t)`` (>= 0 when the obstacle
+            pushes), ``contact_intervals`` ([(t_start, t_end), ...]), ``intervals(T)``,
+            ``energy``, ``contact_point`` (:class:`sdm_dolfinx.problems.exact.ExactSolution`).
     """
     name: str
     build: Callable
@@ -295,6 +311,7 @@ class ProblemSpec:
     check: Optional[Callable] = None
     estimate: Optional[Callable] = None
     source: Optional[str] = None
+    exact: Optional[Callable] = None
 
     def param(self, name):
         for p in self.params:

@@ -213,11 +213,14 @@ def _build(comm, width, height, nx, ny, E, nu, rho, gravity, v0, start):
     # a Constant, not a literal vector: with gravity = 0 UFL would simplify the load to an empty form
     g = fem.Constant(msh, np.array((0.0, -gravity), dtype=PETSc.ScalarType))
 
-    def a(u, w):
-        """Plane-strain elasticity: (sigma(u), eps(w)) with sigma = lambda tr(eps) I + 2 mu eps."""
+    def sigma(u):
+        """Plane-strain Hooke's law: sigma = lambda tr(eps) I + 2 mu eps (the Problem's ``stress``)."""
         eps_u = ufl.sym(ufl.grad(u))
-        sigma = lmbda * ufl.tr(eps_u) * ufl.Identity(2) + 2.0 * mu * eps_u
-        return ufl.inner(sigma, ufl.sym(ufl.grad(w))) * ufl.dx
+        return lmbda * ufl.tr(eps_u) * ufl.Identity(2) + 2.0 * mu * eps_u
+
+    def a(u, w):
+        """Plane-strain elasticity: (sigma(u), eps(w))."""
+        return ufl.inner(sigma(u), ufl.sym(ufl.grad(w))) * ufl.dx
 
     def l(w):                                                                # noqa: E741 (the paper's L)
         """Gravity: (rho g, w)."""
@@ -229,7 +232,7 @@ def _build(comm, width, height, nx, ny, E, nu, rho, gravity, v0, start):
     else:
         u0 = lambda x: np.zeros((2, x.shape[1]))                             # noqa: E731
     return _problem.Problem(
-        name="block", mesh=msh, shape=(2,), rho=rho, a=a, l=l, u0=u0,
+        name="block", mesh=msh, shape=(2,), rho=rho, a=a, l=l, u0=u0, stress=sigma,
         v0=lambda x: np.vstack([np.full(x.shape[1], v0), np.zeros(x.shape[1])]),
         constraint_vertices=lambda m: dmesh.locate_entities(m, 0, on_bottom),
         # the foundation y = 0: a vertex at height y keeps y + u_y >= 0

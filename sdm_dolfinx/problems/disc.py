@@ -186,7 +186,7 @@ def _build(comm, level, h, mesh_file, radius, height, rho, lame_lambda, lame_mu,
 
     return _problem.Problem(
         name="disc", mesh=msh, shape=(2,), rho=rho,
-        a=a,
+        a=a, stress=lambda u: sigma(u, lame_lambda, lame_mu),
         l=lambda w: rho * ufl.inner(g, w) * ufl.dx,
         u0=u0,
         v0=lambda x: np.vstack([np.full(x.shape[1], vx0), np.full(x.shape[1], v0)]),

@@ -18,7 +18,8 @@ from sdm_dolfinx.problems.base import ProblemInputError, ProblemSpec, one_line, 
 _REGISTRY = {}
 #: the keys a ProblemSpec's ``defaults`` may hold: the run options, and the unit of dt and T
 DEFAULT_KEYS = ("pair", "scheme", "dt", "T", "mass", "vi_solver", "linear", "write_every", "checkpoint_every",
-                "quadrature_degree", "friction", "mu", "tresca_threshold", "time_unit")
+                "quadrature_degree", "friction", "mu", "tresca_threshold", "constrain", "contact", "penalty",
+                "nitsche_theta", "nitsche_gamma0", "hht_alpha", "restitution", "time_unit")
 
 
 def register(spec):

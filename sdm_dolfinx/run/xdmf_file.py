@@ -66,7 +66,9 @@ class XDMFWriter:
     mesh its midside nodes too), or, for a P2 displacement on an affine mesh, the mesh as
     straight quadratic cells, so that the mid-edge values of P2 fields are seen. A field whose
     space is Lagrange of degree <= the nodes' degree is written exactly; others (P1+) through
-    their vertex values. Rank 0 writes after a gather, in a partition-independent order (the
+    their vertex values. An interval mesh is written as dolfinx 0.5.2 writes one: ``PolyLine``
+    cells (``Edge_3`` with the mid-edge nodes of a P2 displacement) and ``XY`` points (y = 0).
+    Rank 0 writes after a gather, in a partition-independent order (the
     same file on any number of ranks); the HDF5 file through its :class:`JournaledFile`, then
     the whole XML atomically (it lists only steps whose data is complete).
 
@@ -169,7 +171,7 @@ class XDMFWriter:
                        (self.src["contact_status"], self.integ.contact_status(active))]
         for f, vals in vertex:
             f.x.array[:] = 0.0
-            f.x.array[d.q1_of_c] = vals
+            f.x.array[d.q1_of_c] = np.asarray(vals)[d.c_vertex]     # constrain="nodes": the vertex dofs
             vec = compat.petsc_vec(f)
             vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
             vec.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)

@@ -4,7 +4,7 @@ Two node sets (both give ``geometry``, ``topology`` and ``values(f)`` on rank 0)
 
 * :class:`NodeOrder`: the mesh's own geometry nodes (vertices; on a curved quadratic mesh
   also its midside nodes), in the mesh's input order;
-* :class:`EdgeNodes`: an affine mesh written as quadratic cells (``Triangle_6``,
+* :class:`EdgeNodes`: an affine mesh written as quadratic cells (``Edge_3``, ``Triangle_6``,
   ``Tetrahedron_10``) with straight edges, so that a P2 field shows its mid-edge values: the
   vertices in input order, then the edge midpoints ordered by their end vertices' input
   indices. Used when W^h is P2 on an affine mesh (a viewer otherwise never sees the mid-edge
@@ -24,11 +24,17 @@ from sdm_dolfinx.mpiutil import gather_rows
 _XDMF_CELLS = {("triangle", 1): "Triangle", ("triangle", 2): "Triangle_6",
                ("quadrilateral", 1): "Quadrilateral", ("quadrilateral", 2): "Quadrilateral_9",
                ("tetrahedron", 1): "Tetrahedron", ("tetrahedron", 2): "Tetrahedron_10",
-               ("hexahedron", 1): "Hexahedron", ("interval", 1): "PolyLine"}
+               ("hexahedron", 1): "Hexahedron", ("interval", 1): "PolyLine", ("interval", 2): "Edge_3"}
 
-#: the edges of a simplex in VTK's order of the mid-edge nodes (Triangle_6, Tetrahedron_10)
-_VTK_EDGES = {"triangle": ((0, 1), (1, 2), (2, 0)),
+#: the edges of a simplex in VTK's order of the mid-edge nodes (Edge_3, Triangle_6, Tetrahedron_10)
+_VTK_EDGES = {"interval": ((0, 1),), "triangle": ((0, 1), (1, 2), (2, 0)),
               "tetrahedron": ((0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3))}
+
+
+def geometry_columns(msh):
+    """The coordinates written per point: the mesh's gdim, but 2 for an interval mesh (dolfinx
+    0.5.2's XDMFFile writes its points as ``XY``, y = 0, and so do we)."""
+    return max(int(msh.geometry.dim), 2)
 
 
 def output_nodes(msh, w_degree):
@@ -88,7 +94,7 @@ class NodeOrder(_Order):
     def __init__(self, msh):
         self.comm = msh.comm
         geo = msh.geometry
-        self.gdim, tdim = geo.dim, msh.topology.dim
+        self.gdim, tdim = geometry_columns(msh), msh.topology.dim
         self.nloc = nloc = geo.index_map().size_local
         inputs = np.asarray(geo.input_global_indices, dtype=np.int64)
         gdm = compat.mesh_geometry_dofmap(msh)
@@ -142,7 +148,7 @@ class EdgeNodes(_Order):
     def __init__(self, msh):
         self.comm = msh.comm
         geo = msh.geometry
-        self.gdim, tdim = geo.dim, msh.topology.dim
+        self.gdim, tdim = geometry_columns(msh), msh.topology.dim
         self.cell_name = compat.cell_name(msh)
         self.topology_type = _XDMF_CELLS[(self.cell_name, 2)]
         edges = _VTK_EDGES[self.cell_name]
