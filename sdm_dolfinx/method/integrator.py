@@ -1,29 +1,30 @@
-"""Time schemes for the semi-discrete problem (5) (or (4)): midpoint (14)/(23) and backward Euler.
+"""One time step of a scheme on a Discretisation: the step's LCP  K X = b + lam  and the update.
 
-Both schemes reduce each step to one LCP with a constant matrix. Writing alpha = 2/dt
-(midpoint) or 1/dt (backward Euler) and X for the constrained iterate (U^{n+1/2} for the
-midpoint scheme, U^{n+1} for backward Euler):
+For the paper's schemes (midpoint (14)/(23), backward Euler), writing alpha = 2/dt (midpoint) or
+1/dt (backward Euler) and X for the constrained iterate (U^{n+1/2} for the midpoint scheme,
+U^{n+1} for backward Euler):
 
   M formulation:   (alpha^2 M + A) X = L + M (alpha Vbar^n + alpha^2 U^n) + lam
   block (U, V):    [A  alpha B^T] [X]   [L + alpha B^T V^n]   [lam]
                    [alpha B  -C ] [Y] = [alpha B U^n      ] + [ 0 ]
 
 (eliminating Y = alpha C^-1 B (X - U^n) from the block system gives the first line with
-M = B^T C^-1 B). For the midpoint scheme alpha^2 = 4/dt^2, the paper's matrix.
+M = B^T C^-1 B). For the midpoint scheme alpha^2 = 4/dt^2, the paper's matrix. Every scheme
+(:mod:`sdm_dolfinx.method.schemes`) chooses its constant step matrix K = c_M M + c_A A (or its own,
+:mod:`.step_matrix`), builds its right-hand side, may keep state between steps (Newmark's
+acceleration: :attr:`Integrator.stateful`) and updates (U, V) from X; an explicit scheme solves
+with M only (:mod:`.step_mass`). A contact treatment other than the exact one (penalty, Nitsche:
+:mod:`sdm_dolfinx.method.contact`) replaces the VI by its own step solver.
 
 L is the vector assembled once, or, for a Problem that declares ``time``, L reassembled before
 every step at the time the scheme evaluates the load (:meth:`Scheme.load_time`). Before every
 step the data assembled once are checked unchanged (:class:`~sdm_dolfinx.method.frozen.FrozenData`).
 """
 from mpi4py import MPI
-from petsc4py import PETSc
 
 import numpy as np
-import ufl
-from dolfinx import fem
 
-from sdm_dolfinx import compat
-from sdm_dolfinx.method import friction as _friction, schemes
+from sdm_dolfinx.method import friction as _friction, schemes, step_matrix as _step_matrix
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.solvers import VIError, choose_strategy, make_vi_solver, sparse_factor_matrix
 from sdm_dolfinx.solvers.friction import FrictionalNewton
@@ -41,7 +42,9 @@ class Integrator:
 
     Args:
         discretisation: a :class:`sdm_dolfinx.disccretisation.Discretisation`.
-        scheme: ``"midpoint"`` or ``"backward-euler"``.
+        scheme: a registered scheme's name (:data:`SCHEMES`: ``"midpoint"``, ``"backward-euler"``,
+            ``"newmark"``, ``"hht"``, ``"central-difference"``, ``"paoli-schatzman"``,
+            ``"taylor-flanagan"``).
         dt: the time step.
         vi_solver: ``"ssn"`` (semi-smooth Newton, default), ``"vinewtonrsls"``, ``"vinewtonssls"``.
         linear: linear strategy of the semi-smooth Newton (see :mod:`sdm_dolfinx.solvers`).
@@ -49,41 +52,81 @@ class Integrator:
         friction: a :class:`~sdm_dolfinx.method.friction.Friction` (None: frictionless); with
             friction the step solver is :class:`~sdm_dolfinx.solvers.friction.FrictionalNewton`
             (``vi_solver`` "ssn", ``linear`` "auto" or "schur": it factorises K once; others are refused).
+        scheme_options: the scheme's parameters, a dict with keys among ``hht_alpha``,
+            ``restitution`` (None values: the scheme's defaults; see the scheme's module).
+        contact: ``"exact"`` (the VI, default) or a contact treatment of
+            :mod:`sdm_dolfinx.method.contact` (``"penalty"``, ``"nitsche"``).
+        contact_options: the treatment's parameters (``penalty``, ``nitsche_theta``, ``nitsche_gamma0``).
+
+    Raises:
+        DiscretisationError: a combination the scheme or the treatment refuses (one line).
+        ValueError: a scheme parameter it does not take, or out of its range.
     """
 
     def __init__(self, discretisation, scheme="midpoint", dt=1e-3, vi_solver="ssn", linear="auto", options=None,
-                 friction=None):
-        self.time_scheme = schemes.get(scheme)
+                 friction=None, scheme_options=None, contact="exact", contact_options=None):
+        self.time_scheme = ts = schemes.get(scheme).configure(scheme_options)
         self.discretisation, self.scheme, self.dt = discretisation, scheme, float(dt)
+        self.contact, self.vi_solver = contact, vi_solver
         self.time_dependent = discretisation.problem.time is not None
-        if self.time_dependent and self.time_scheme.load_theta is None:
+        if self.time_dependent and ts.load_theta is None:
             raise DiscretisationError(f"problem {discretisation.problem.name!r} has a time-dependent load, and scheme "
                                       f"{scheme!r} does not say when it evaluates it (Scheme.load_theta)")
-        self.alpha = self.time_scheme.factor / self.dt
+        self.alpha = ts.factor / self.dt if ts.factor is not None else None
         self.block = discretisation.mass == "consistent"
         self.nW = discretisation.A.getLocalSize()[0]
-        self._build()
         self.friction = friction if friction is not None and friction.on else None
+        self.treatment, self.state = None, None
         refused = _friction.check_solver(self.friction and self.friction.law, vi_solver, linear)
+        refused = refused or [r for r in (self._refuse_contact(), ts.refuse(self)) if r]
         if refused:
             raise DiscretisationError(refused[0])
+        ts.setup(self)
+        self._build()
+        self._make_solver(vi_solver, linear, options, contact_options)
+        ts.prepare(self)
+
+    @property
+    def stateful(self):
+        """The scheme keeps state beyond (U, V) between steps (Newmark's acceleration): a
+        checkpoint of U and V cannot restart it."""
+        return bool(self.time_scheme.stateful)
+
+    def _refuse_contact(self):
+        """The refusal of a contact treatment with friction or the block variant, or None."""
+        if self.contact == "exact":
+            return None
+        if self.friction is not None:
+            return f"friction needs contact 'exact' (the frictional step is a VI), not {self.contact!r}"
+        if self.block:
+            return (f"contact {self.contact!r} is written in the M formulation; mass 'consistent' solves the "
+                    f"(U, V) block system: use mass 'lumped'")
+        return None
+
+    def _make_solver(self, vi_solver, linear, options, contact_options):
+        d = self.discretisation
         if linear == "auto":
-            linear = choose_strategy(discretisation.num_constraints, not self.block)
-        # a factorisation of K = alpha^2 B^T D^-1 B + A is cheaper through the sparser
-        # augmented matrix [A, alpha B^T; alpha B, -D] when M is much denser than A (P2/P1)
+            linear = choose_strategy(d.num_constraints, not self.block)
+        # a factorisation of K = c_M B^T D^-1 B + A is cheaper through the sparser
+        # augmented matrix [A, sqrt(c_M) B^T; sqrt(c_M) B, -D] when M is much denser than A (P2/P1)
         factorised = self.friction is not None or (vi_solver == "ssn" and linear in ("schur", "cg-factor"))
         self.factor_matrix = None
-        if factorised and not self.block and discretisation.B is not None and discretisation.c_lumped is not None:
-            d = discretisation
-            self.factor_matrix = sparse_factor_matrix(self.K, d.A, d.B, d.c_lumped, self.alpha, d.ddofs)
+        if (factorised and not self.block and self.coefficients is not None and self.coefficients[1] == 1.0
+                and d.B is not None and d.c_lumped is not None):
+            c_M, a = self.coefficients[0], self.alpha
+            scale = a if a is not None and a * a == c_M else np.sqrt(c_M)
+            self.factor_matrix = sparse_factor_matrix(self.K, d.A, d.B, d.c_lumped, scale, d.ddofs)
         self.slip = None
-        if self.friction is None:
-            self.solver = make_vi_solver(vi_solver, self.K, discretisation.cdofs, discretisation.lb,
+        if self.contact != "exact":
+            from sdm_dolfinx.method import contact as _contact          # lazily: a registry of its own
+            self.treatment = _contact.make(self.contact, self, dict(contact_options or {}))
+            self.solver = self.treatment.solver
+        elif self.friction is None:
+            self.solver = make_vi_solver(vi_solver, self.K, d.cdofs, self.time_scheme.solver_bounds(self),
                                          symmetric_positive=not self.block, linear=linear, options=options,
                                          factor_matrix=self.factor_matrix)
         else:
             self._friction_solver(options)
-        self.vi_solver = vi_solver
 
     def _friction_solver(self, options):
         d, f = self.discretisation, self.friction
@@ -97,29 +140,18 @@ class Integrator:
         self.slip = np.zeros(len(self.tdofs))
 
     def _build(self):
-        d, a = self.discretisation, self.alpha
-        if not self.block:
-            K = d.M.copy()
-            K.scale(a * a)
-            K.axpy(1.0, d.A, structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
-        else:
-            p, W, H = d.problem, d.W, d.H
-            u, w = ufl.TrialFunction(W), ufl.TestFunction(W)
-            v, q = ufl.TrialFunction(H), ufl.TestFunction(H)
-            rho = fem.Constant(p.mesh, PETSc.ScalarType(p.rho))
-            al = fem.Constant(p.mesh, PETSc.ScalarType(a))
-            forms = [[d.form(p.a(u, w)), d.form(al * rho * ufl.inner(v, w) * ufl.dx)],       # the degree of A, B, C
-                     [d.form(al * rho * ufl.inner(u, q) * ufl.dx), d.form(-rho * ufl.inner(v, q) * ufl.dx)]]
-            K = compat.assemble_matrix_block(forms)
+        d, ts = self.discretisation, self.time_scheme
+        K = ts.step_matrix(self)
+        #: (c_M, c_A) of K = c_M M + c_A A, or None (the block variant, a scheme's own matrix)
+        self.coefficients = None
+        if K is None and not self.block:
+            self.coefficients = ts.coefficients(self.dt)
+            K = _step_matrix.combination(d, *self.coefficients)
+        elif K is None:
+            K = _step_matrix.block_matrix(d, self.alpha)
         self.K_full = K
         # Dirichlet dofs (constant values g): identity rows and columns, lifting z = K g
-        self.gsys = K.createVecRight()
-        self.gsys.array[d.ddofs] = d.g.x.array[d.ddofs]
-        self.lift = K.createVecLeft()
-        K.mult(self.gsys, self.lift)
-        self.K = K.copy()
-        rows = K.getOwnershipRange()[0] + d.ddofs
-        self.K.zeroRowsColumns(rows.astype(np.int32), 1.0)
+        self.K, self.gsys, self.lift = _step_matrix.eliminate(K, d)
         self.b = self.K.createVecLeft()
         self.X = self.K.createVecRight()
         self._tmpW = d.A.createVecLeft()
@@ -140,11 +172,16 @@ class Integrator:
             self._L_state_t = t
         return self._L_state
 
-    def rhs(self, U, V, L=None):
-        """Right-hand side for the state (U^n, V^n) and the load vector ``L`` (default: the one
-        assembled once), with Dirichlet lifting applied."""
+    def rhs(self, U, V, L=None, t=0.0):
+        """Right-hand side of the step from the state (U^n, V^n) at time ``t`` with the load
+        vector ``L`` (default: the one assembled once), Dirichlet lifting applied (the scheme's
+        :meth:`~sdm_dolfinx.method.schemes.base.Scheme.rhs`)."""
+        return self.time_scheme.rhs(self, U, V, self.discretisation.L if L is None else L, t)
+
+    def alpha_rhs(self, U, V, L):
+        """b = L + M (alpha V^n + alpha^2 U^n) (block: [L + alpha B^T V^n; alpha B U^n]), lifted:
+        the right-hand side of the paper's schemes."""
         d, a, b, nW = self.discretisation, self.alpha, self.b, self.nW
-        L = d.L if L is None else L
         t = self._tmpW
         if not self.block:
             V.copy(t)
@@ -161,9 +198,18 @@ class Integrator:
             bu = d.B.createVecLeft()
             d.B.mult(U, bu)
             b.array[nW:] = a * bu.array
+        return self.lifted(b)
+
+    def lifted(self, b):
+        """b with the Dirichlet lifting: b - K g off the Dirichlet dofs, g on them (in place)."""
+        d = self.discretisation
         b.axpy(-1.0, self.lift)
         b.array[d.ddofs] = self.gsys.array[d.ddofs]
         return b
+
+    def mass_mult(self, x, y):
+        """y = M x (M formulation)."""
+        self._mass(x, y)
 
     def step(self, U, V, n, t):
         """Advance (U, V) from t to t + dt in place; returns the solver info.
@@ -171,16 +217,16 @@ class Integrator:
         Raises:
             StepError: naming the step, the time and the cause.
         """
-        d, nW = self.discretisation, self.nW
+        d, ts = self.discretisation, self.time_scheme
         changed = d.frozen.changed()
         if changed:
             raise StepError(f"step {n + 1} (t = {t + self.dt:.6g}): {changed}")
-        L = d.load(self.time_scheme.load_time(t, self.dt), self._L_step) if self.time_dependent else None
-        b = self.rhs(U, V, L)
+        L = d.load(ts.load_time(t, self.dt), self._L_step) if self.time_dependent else d.L
+        if ts.stateful and self.state is None:
+            self.state = ts.start(self, U, V, t)
+        b = ts.rhs(self, U, V, L, t)
         X = self.X
-        X.array[:nW] = U.array          # initial guess: the previous displacement
-        if self.block:
-            X.array[nW:] = V.array
+        ts.guess(self, U, V, X)         # initial guess: the previous displacement
         try:
             if self.friction is None:
                 info = self.solver.solve(b, X)
@@ -188,20 +234,15 @@ class Integrator:
                 info = self.solver.solve(b, X, U.array[self.tdofs].copy())
         except VIError as e:
             raise StepError(f"step {n + 1} (t = {t + self.dt:.6g}): {e}") from None
-        x = X.array[:nW]
-        info["gap_imposed"] = self.discretisation.comm.allreduce(
-            float(np.min(x[d.cdofs] - d.lb, initial=np.inf)), op=MPI.MIN)
-        Un = U.array.copy()
-        ts = self.time_scheme
-        U.array[:] = ts.displacement(x, Un)
-        if self.block:
-            V.array[:] = ts.velocity_block(X.array[nW:], V.array)
-        else:
-            V.array[:] = ts.velocity(x, Un, V.array, self.alpha)
+        comm = d.comm
+        # a contact treatment imposes nothing (penetration is its model): +inf
+        imposed = ts.imposed_gap(self, X) if self.treatment is None else float("inf")
+        info["gap_imposed"] = comm.allreduce(imposed, op=MPI.MIN)
+        Un = U.array.copy() if self.friction is not None else None
+        ts.update(self, X, U, V, t)
         if self.friction is not None:
             self._friction_info(info, U.array, Un)
-        info["gap_end"] = self.discretisation.comm.allreduce(
-            float(np.min(U.array[d.cdofs] - d.lb, initial=np.inf)), op=MPI.MIN)
+        info["gap_end"] = comm.allreduce(float(np.min(U.array[d.cdofs] - d.lb, initial=np.inf)), op=MPI.MIN)
         return info
 
     def _friction_info(self, info, u, un):
@@ -271,8 +312,14 @@ class Integrator:
 
     @property
     def lam(self):
-        """Nodal multipliers of the last step at the owned constrained dofs (>= 0)."""
+        """Nodal contact forces of the last step at the owned constrained dofs (>= 0 pushes),
+        whatever the contact treatment."""
         return self.solver.lam
+
+    def contact_energy(self, U):
+        """The energy stored in the contact treatment at the state U (collective; 0.0 for the
+        exact contact)."""
+        return 0.0 if self.treatment is None else float(self.treatment.energy(U))
 
     def energies(self, U, V, time=None):
         """(kinetic, potential) of the discrete energy J^h (Theorem 2); a time-dependent load
@@ -305,6 +352,10 @@ class Integrator:
         return V.dot(t)
 
     def destroy(self):
-        self.solver.destroy()
+        if self.treatment is not None:
+            self.treatment.destroy()            # its solver included
+        else:
+            self.solver.destroy()
         if self.factor_matrix is not None:
             self.factor_matrix.destroy()
+        self.time_scheme.destroy(self)

@@ -49,9 +49,9 @@ def test_registry_names_and_get():
 
 def test_unknown_scheme():
     with pytest.raises(ValueError) as e:
-        schemes.get("newmark")
+        schemes.get("verlet")
     msg = str(e.value)
-    assert "'newmark'" in msg and "midpoint" in msg and "backward-euler" in msg and "\n" not in msg
+    assert "'verlet'" in msg and "midpoint" in msg and "backward-euler" in msg and "\n" not in msg
 
 
 def test_register_takes_only_schemes(clean_schemes):

@@ -1,13 +1,19 @@
 """Time schemes: one file each, behind one registry.
 
 Every scheme turns a step of the semi-discrete problem (5) (or the (U, V) block form (4))
-into one LCP with a constant matrix (see :mod:`sdm_dolfinx.method.integrator`):
+into one LCP with a constant matrix K = c_M M + c_A A (see :mod:`sdm_dolfinx.method.integrator`)
+for its constrained iterate X, and then updates (U, V) from X; the paper's schemes have
 
-    (alpha^2 M + A) X = L + M (alpha Vbar^n + alpha^2 U^n) + lam,    alpha = factor / dt,
+    (alpha^2 M + A) X = L + M (alpha Vbar^n + alpha^2 U^n) + lam,    alpha = factor / dt.
 
-for its constrained iterate X, and then updates (U, V) from X. A scheme is a
-:class:`Scheme`: its ``factor``, the name of X, and the update. Adding one is one new file
-here calling :func:`register`, plus its tests.
+A scheme is a :class:`Scheme` (its hooks: :mod:`~sdm_dolfinx.method.schemes.base`). Adding one
+is one new file here calling :func:`register`, plus its tests. The schemes:
+
+* ``midpoint``, ``backward-euler``: the paper's (constraint on U^{n+1/2}, U^{n+1});
+* ``newmark`` (beta = 1/4, gamma = 1/2), ``hht`` (HHT-alpha): implicit, constraint on U^{n+1},
+  the acceleration kept between steps (stateful);
+* ``central-difference``, ``paoli-schatzman`` (restitution e), ``taylor-flanagan``: explicit,
+  one solve with M per step, CFL-bounded (:mod:`~sdm_dolfinx.method.schemes.explicit`).
 """
 from sdm_dolfinx.method.schemes.base import Scheme
 
@@ -34,7 +40,13 @@ def names():
     return tuple(_REGISTRY)
 
 
-from sdm_dolfinx.method.schemes import backward_euler, midpoint  # noqa: E402
+from sdm_dolfinx.method.schemes import (backward_euler, central_difference, hht, midpoint, newmark,  # noqa: E402
+                                        paoli_schatzman, taylor_flanagan)
 
 register(midpoint.SCHEME)
 register(backward_euler.SCHEME)
+register(newmark.SCHEME)
+register(hht.SCHEME)
+register(central_difference.SCHEME)
+register(paoli_schatzman.SCHEME)
+register(taylor_flanagan.SCHEME)
