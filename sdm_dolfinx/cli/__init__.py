@@ -1,7 +1,7 @@
 """The command line: ``python -m sdm_dolfinx COMMAND [options]``.
 
 Commands: one per registered problem (a run: :mod:`.run`), ``run`` for a problem file, and
-the tools ``energy``, ``inspect`` and ``figures``. Each command's module does its argparse
+the tools ``energy``, ``inspect``, ``figures``, ``render`` and ``compare``. Each command's module does its argparse
 and one-line error handling; nothing in the package imports this layer.
 """
 import contextlib
@@ -22,6 +22,8 @@ TOOLS = {
                                            "figures and Table 2"),
     "energy": ("sdm_dolfinx.cli.energy", "recompute a finished run's energy history from its state.h5"),
     "render": ("sdm_dolfinx.cli.render", "pictures and animations of a run from its files; ParaView-friendly XDMF"),
+    "compare": ("sdm_dolfinx.cli.compare", "compare dynamic-contact methods on one problem over a grid of h and dt "
+                                           "(metrics against the exact solution, figures, ranking)"),
 }
 
 

@@ -25,12 +25,14 @@ from sdm_dolfinx.problems import ProblemInputError, get, load_file, spec_of_run
 from sdm_dolfinx.problems.disc_mesh import MeshError
 from sdm_dolfinx.run import (CheckpointError, Interrupted, RunFolderError, RunInputError, SolverSetupError, plan,
                              read_info)
+from sdm_dolfinx.run.launch import CONSTRAIN, CONTACTS
 from sdm_dolfinx.solvers import LINEAR_STRATEGIES, VI_OPTIONS, VI_SOLVERS
 
 PROG = "python -m sdm_dolfinx"
 #: the parsed options that are run options of :func:`sdm_dolfinx.run.plan`
 RUN_OPTIONS = ("pair", "mass", "scheme", "dt", "T", "vi_solver", "linear", "write_every", "checkpoint_every",
-               "quadrature_degree", "friction", "mu", "tresca_threshold")
+               "quadrature_degree", "friction", "mu", "tresca_threshold", "constrain", "contact", "penalty",
+               "nitsche_theta", "nitsche_gamma0", "hht_alpha", "restitution")
 
 PETSC_EPILOG = (
     "PETSc options of the step solver can be added as -sdm_<option>: -sdm_vi_rtol (default 1e-10, "
@@ -79,6 +81,7 @@ def add_run_options(p, defaults):
     f.add_argument("--mu", type=nonnegative_float, default=S, help="Coulomb's friction coefficient (--friction coulomb)")
     f.add_argument("--tresca-threshold", type=nonnegative_float, default=S, metavar="S",
                    help="Tresca's threshold, a stress in the problem's units (--friction tresca)")
+    add_method_options(p, defaults)
     o = p.add_argument_group("output")
     o.add_argument("--out", type=folder_path, default=None, help="output folder (default output/<problem>)")
     o.add_argument("--write-every", type=positive_int, default=S, metavar="K",
@@ -94,6 +97,40 @@ def add_run_options(p, defaults):
                    help="continue the run in DIR from its checkpoint, with the problem, parameters and options of "
                         "DIR/run.json (same number of ranks; only --checkpoint-every and --quiet may be given)")
     p.epilog = PETSC_EPILOG
+
+
+def add_method_options(p, defaults):
+    """The options of the method comparison: where K^h acts, the contact treatment and the
+    schemes' parameters (docs/methods.md)."""
+    S = argparse.SUPPRESS
+    m = p.add_argument_group("contact treatment and scheme parameters (docs/methods.md)")
+    m.add_argument("--constrain", choices=CONSTRAIN, default=S,
+                   help="where the constraint holds: vertices (eq. (13), default) or nodes (every dof of W^h on the "
+                        "constrained boundary: P2 mid-edge nodes too)")
+    m.add_argument("--contact", choices=CONTACTS, default=S,
+                   help=f"contact treatment: exact (the variational inequality, default), penalty (--penalty) or "
+                        f"nitsche (--nitsche-theta, --nitsche-gamma0)")
+    m.add_argument("--penalty", type=positive_float, default=S, metavar="EPS",
+                   help="penalty parameter (--contact penalty; see docs/methods.md for its scale and default)")
+    m.add_argument("--nitsche-theta", type=nitsche_theta, default=S, metavar="THETA",
+                   help="Nitsche's theta: 1 (symmetric), 0 or -1 (skew-symmetric) (--contact nitsche)")
+    m.add_argument("--nitsche-gamma0", type=positive_float, default=S, metavar="G0",
+                   help="Nitsche's gamma0: gamma = gamma0 / h (--contact nitsche)")
+    m.add_argument("--hht-alpha", type=float, default=S, metavar="ALPHA",
+                   help="the HHT scheme's alpha in [-1/3, 0] (--scheme hht)")
+    m.add_argument("--restitution", type=nonnegative_float, default=S, metavar="E",
+                   help="restitution coefficient in [0, 1] (--scheme paoli-schatzman)")
+
+
+def nitsche_theta(text):
+    """argparse type of --nitsche-theta: -1, 0 or 1."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = None
+    if value not in (-1.0, 0.0, 1.0):
+        raise argparse.ArgumentTypeError(f"{text!r} is not -1, 0 or 1")
+    return int(value)
 
 
 def quadrature_degree(text):
@@ -222,8 +259,10 @@ def make_plan(spec, args, command, comm):
 
 def _cli_words(msg):
     """Run-option names as the command line spells them."""
-    for k in ("write_every", "checkpoint_every", "vi_solver", "quadrature_degree", "tresca_threshold", "dt", "T"):
-        msg = msg.replace(f"{k} must", f"--{k.replace('_', '-')} must").replace(f"{k} (", f"--{k} (")
+    for k in ("write_every", "checkpoint_every", "vi_solver", "quadrature_degree", "tresca_threshold", "dt", "T",
+              "hht_alpha", "nitsche_theta", "nitsche_gamma0", "penalty", "restitution"):
+        flag = f"--{k.replace('_', '-')}"
+        msg = msg.replace(f"{k} must", f"{flag} must").replace(f"{k} (", f"--{k} (").replace(f"{k} is a", f"{flag} is a")
     return msg
 
 

@@ -8,8 +8,8 @@ from mpi4py import MPI
 import numpy as np
 
 from sdm_dolfinx.mpiutil import atomic_write_text, json_text
-from sdm_dolfinx.paper import (disc_figures, figures, friction, friction_impact, metrics, pictures, table2,
-                               table2_report)
+from sdm_dolfinx.paper import (compare_report, disc_figures, figures, friction, friction_impact, metrics, pictures,
+                               table2, table2_report)
 from sdm_dolfinx.paper.runs import duration, read_run_info
 from sdm_dolfinx.paper.study import BE_PAIRS, MEMBRANE_PAIRS
 
@@ -77,6 +77,7 @@ def make_report(study, runs_dir, out, records, comm=COMM, say=print, meta=None):
     t2_errors = table2.table2_study(study, runs_dir, comm, say)
     conv = table2.convergence(study, t2_errors)
     checks = metrics.energy_checks(study, runs_dir, comm)
+    comparison = compare_report.entry(study, runs_dir, out, comm, say)     # issue 18 (collective runs)
     if comm.rank == 0:
         entries.append(_with_verdict(pictures.picture_membrane(study, runs_dir, out)))
         for pair in MEMBRANE_PAIRS:
@@ -95,6 +96,8 @@ def make_report(study, runs_dir, out, records, comm=COMM, say=print, meta=None):
             entries += [friction.fig_incline(study.friction, runs_dir, out),
                         friction.fig_block(study.friction, runs_dir, out),
                         *friction_impact.impact_entries(study.friction, runs_dir, out)]
+        if comparison is not None:
+            entries.append(comparison)
         meta = dict(meta or {}, runs_dir=runs_dir)
         meta["runs_total"] = sum((read_run_info(runs_dir / r.name) or {}).get("wall_time") or 0.0
                                  for r in study.runs())
@@ -125,10 +128,12 @@ def write_report(out, entries, t2, checks, records, study, meta):
     summary = [(e["key"], {"yes": "agrees", "part": "in part", "no": "does not agree"}[_verdict_of(e)])
                for e in entries]
     parts = _head(study, meta) + ["<h2>Summary</h2>" + metrics.html_table(["figure", "verdict"], summary)]
-    first_friction = next((i for i, e in enumerate(entries) if e.get("says")), None)
+    first_friction = next((i for i, e in enumerate(entries) if e.get("says") and not e.get("head")), None)
     for i, e in enumerate(entries):
         if i == first_friction:            # entries with a closed form of their own ("says"), not the paper's
             parts.append(_FRICTION_HEAD)
+        if e.get("head"):                  # a section of its own (the comparison of methods)
+            parts.append(e["head"])
         parts.append(_section(e, t2))
     parts += _energy_section(checks) + _runs_section(study, records, meta) + ["</body></html>"]
     atomic_write_text(out / "index.html", "\n".join(parts))

@@ -28,7 +28,21 @@ from sdm_dolfinx.solvers import LINEAR_STRATEGIES, VI_SOLVERS
 #: the run options and their defaults where the problem declares none
 RUN_DEFAULTS = {"pair": "P1+/P0", "scheme": "midpoint", "dt": 1e-3, "T": 0.8, "mass": None, "vi_solver": "ssn",
                 "linear": "auto", "write_every": None, "checkpoint_every": None, "quadrature_degree": None,
-                "friction": None, "mu": None, "tresca_threshold": None}
+                "friction": None, "mu": None, "tresca_threshold": None, "constrain": "vertices", "contact": "exact",
+                "penalty": None, "nitsche_theta": None, "nitsche_gamma0": None, "hht_alpha": None,
+                "restitution": None}
+#: where the constraint K^h acts (:class:`~sdm_dolfinx.method.discretisation.Discretisation`)
+CONSTRAIN = ("vertices", "nodes")
+#: the contact treatments (:mod:`sdm_dolfinx.method.contact`)
+CONTACTS = ("exact", "penalty", "nitsche")
+#: method parameters: (the option that uses them, its value, the check, what it must be)
+METHOD_PARAMETERS = {
+    "hht_alpha": ("scheme", "hht", lambda v: -1 / 3 <= v <= 0, "a number in [-1/3, 0]"),
+    "restitution": ("scheme", "paoli-schatzman", lambda v: 0 <= v <= 1, "a number in [0, 1]"),
+    "penalty": ("contact", "penalty", lambda v: 0 < v < float("inf"), "a positive number"),
+    "nitsche_theta": ("contact", "nitsche", lambda v: v in (-1, 0, 1), "-1, 0 or 1"),
+    "nitsche_gamma0": ("contact", "nitsche", lambda v: 0 < v < float("inf"), "a positive number"),
+}
 #: options a restart may change (the others are the run's)
 RESTART_MAY_CHANGE = ("checkpoint_every",)
 #: the longest run accepted (T / dt): ~100 bytes of time series per step in memory
@@ -161,11 +175,36 @@ def check_options(o):
         errors.append(f"unknown step solver {o['vi_solver']!r}; choose one of {', '.join(VI_SOLVERS)}")
     if o["linear"] not in LINEAR_STRATEGIES:
         errors.append(f"unknown linear strategy {o['linear']!r}; choose one of {', '.join(LINEAR_STRATEGIES)}")
+    errors += _check_method(o)
     errors += quadrature.check(o["quadrature_degree"])
     errors += friction.check(o["friction"], o["mu"], o["tresca_threshold"])
     errors += friction.check_solver(o["friction"], o["vi_solver"], o["linear"])
     if errors:
         raise RunInputError("; ".join(errors))
+
+
+def _check_method(o):
+    """Messages for the method options: a value out of range, or a parameter given to a scheme or
+    contact treatment that does not use it (it would be ignored without a word)."""
+    errors = []
+    if o["constrain"] not in CONSTRAIN:
+        errors.append(f"unknown constrain {o['constrain']!r}; choose one of {', '.join(CONSTRAIN)}")
+    if o["contact"] not in CONTACTS:
+        errors.append(f"unknown contact {o['contact']!r}; choose one of {', '.join(CONTACTS)}")
+    for k, (owner, value, ok, what) in METHOD_PARAMETERS.items():
+        v = o[k]
+        if v is None:
+            continue
+        if o[owner] != value:
+            errors.append(f"{k} is a parameter of {owner} {value}, not of {owner} {o[owner]}: remove it or "
+                          f"choose {owner} {value}")
+        elif isinstance(v, bool) or not isinstance(v, (int, float)) or not ok(v):
+            errors.append(f"{k} must be {what} (got {v!r})")
+    stateful = getattr(schemes.get(o["scheme"]), "stateful", False) if o["scheme"] in schemes.names() else False
+    if stateful and o["checkpoint_every"] is not None:
+        errors.append(f"checkpoint_every must be left out with scheme {o['scheme']}: it keeps state between steps "
+                      f"that a checkpoint does not hold (it cannot restart)")
+    return errors
 
 
 def _check_whole_steps(T, dt):

@@ -16,6 +16,9 @@ BASE_COLUMNS = ("step", "t", "energy", "kinetic", "potential", "u_probe", "lambd
 #: cumulative friction dissipation -sum_steps lam_T . (U^{n+1} - U^n)_t (>= 0), the numbers of
 #: sticking and slipping vertices (the step solver's sets)
 FRICTION_COLUMNS = ("tangential_force", "slip_probe", "dissipated", "n_stick", "n_slip")
+#: the column of a run whose contact is not exact (penalty, Nitsche): the energy stored in the
+#: contact term at U^{n+1} (``Integrator.contact_energy``); ``energy`` includes it
+CONTACT_ENERGY = "contact_energy"
 #: the column added when the constrained boundary has dofs: min over every dof of W^h on it (P2 mid-edge
 #: nodes included) of U_c - bound at the end of the step (the constraint (13) holds at vertices only)
 BOUNDARY_GAP = "gap_min_boundary"
@@ -47,7 +50,8 @@ class TimeSeries:
         d = integ.discretisation
         boundary = (BOUNDARY_GAP,) if d.num_boundary_dofs else ()
         friction = FRICTION_COLUMNS if integ.friction is not None else ()
-        self.columns = BASE_COLUMNS + tuple(problem.extra_columns) + friction + boundary
+        contact = (CONTACT_ENERGY,) if getattr(integ, "treatment", None) is not None else ()
+        self.columns = BASE_COLUMNS + contact + tuple(problem.extra_columns) + friction + boundary
         self.data = {c: np.zeros(nsteps + 1) for c in self.columns}
         self.comm = problem.mesh.comm
         if boundary:
@@ -63,9 +67,12 @@ class TimeSeries:
         iterations, for observers)."""
         integ, comm = self.integ, self.comm
         kin, pot = integ.energies(U, V, t)
-        row = {"step": n, "t": t, "energy": kin + pot, "kinetic": kin, "potential": pot,
+        stored = integ.contact_energy(U) if CONTACT_ENERGY in self.columns else 0.0
+        row = {"step": n, "t": t, "energy": kin + pot + stored, "kinetic": kin, "potential": pot,
                "u_probe": self.probe(U), "lambda_probe": self.cprobe(lam), "n_active": n_active,
                "newton_its": its}
+        if CONTACT_ENERGY in self.columns:
+            row[CONTACT_ENERGY] = stored
         if "contact_force" in self.columns:
             row["contact_force"] = comm.allreduce(float(np.sum(lam)), op=MPI.SUM)
         if "momentum_y" in self.columns:

@@ -37,7 +37,8 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
              linear="auto", out=None, write_every=None, progress=False, petsc_options=None,
              extra_info=None, checkpoint_every=None, restart=False, handle_signals=False, on_step=None,
              constraint_tol=1e-8, folder_seen=None, quadrature_degree=None, friction=None, mu=None,
-             tresca_threshold=None):
+             tresca_threshold=None, constrain="vertices", contact="exact", penalty=None, nitsche_theta=None,
+             nitsche_gamma0=None, hht_alpha=None, restitution=None, observe=None):
     """Run ``problem`` with ``pair`` and ``scheme`` from t = 0 to T.
 
     Args:
@@ -52,6 +53,9 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
         friction, mu, tresca_threshold: friction at the constrained vertices: ``None``/``"none"``,
             ``"tresca"`` (``tresca_threshold``: a stress, times each vertex's lumped boundary
             measure) or ``"coulomb"`` (coefficient ``mu``), see :mod:`sdm_dolfinx.method.friction`.
+        constrain, contact, penalty, nitsche_theta, nitsche_gamma0, hht_alpha, restitution: the
+            method options of docs/methods.md (where K^h acts, the contact treatment, the schemes'
+            parameters; None: their defaults).
         vi_solver, linear, petsc_options: the step solver (see :mod:`sdm_dolfinx.solvers`).
         out: output folder (``timeseries.csv``, ``run.json``, ``solution.xdmf``) or None.
         write_every: XDMF output every K steps (default 10 when ``out`` is given).
@@ -65,6 +69,8 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
         on_step: ``f(step, row)`` called after every step with the time-series row (plus
             ``linear_its_total``, the cumulative linear iterations); returning True requests
             a stop (as a signal would).
+        observe: ``f(n, t, U, V, integ)``, on every rank after row n (n = 0 too) of the time series:
+            the state to read (not change), for what the time series does not hold (field errors).
         folder_seen: ``{"run_id": ...}`` that :func:`sdm_dolfinx.run.folder.check_out` saw in
             ``out`` (None: no check); checked again once the folder is locked.
         constraint_tol: a constrained iterate below its bound by more than this (relative
@@ -86,12 +92,16 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
                    "mass": mass, "vi_solver": vi_solver, "linear": linear, "write_every": write_every,
                    "checkpoint_every": checkpoint_every, "quadrature_degree": quadrature_degree,
                    "friction": friction, "mu": mu, "tresca_threshold": tresca_threshold}
+    method = {"constrain": constrain, "contact": contact, "penalty": penalty, "nitsche_theta": nitsche_theta,
+              "nitsche_gamma0": nitsche_gamma0, "hht_alpha": hht_alpha, "restitution": restitution}
+    run_options.update(method)
     law = _friction.make(friction, mu, tresca_threshold)        # ValueError: options that do not agree
     stop = StopFlag(handle_signals)      # before anything is built or written
     loop = None
     try:
         loop = _Loop(problem, pair, scheme, dt, T, mass, vi_solver, linear, petsc_options, wall0, quadrature_degree,
-                     law)
+                     law, method)
+        loop.observe = observe
         signum = stop.agreed(loop.comm)
         if signum:
             raise Interrupted("interrupted during the set-up, before anything was written", signum)
@@ -108,11 +118,17 @@ class _Loop:
     """The state of one run between :func:`simulate`'s phases (set-up, files, steps, end)."""
 
     def __init__(self, problem, pair, scheme, dt, T, mass, vi_solver, linear, petsc_options, wall0,
-                 quadrature_degree=None, friction=None):
+                 quadrature_degree=None, friction=None, method=None):
         self.wall0, self.dt, self.comm = wall0, dt, problem.mesh.comm
-        self.discretisation = d = Discretisation(problem, pair, mass, quadrature_degree)
+        method = dict(method or {})
+        self.discretisation = d = Discretisation(problem, pair, mass, quadrature_degree,
+                                                 constrain=method.get("constrain") or "vertices")
         try:
-            self.integ = Integrator(d, scheme, dt, vi_solver, linear, petsc_options, friction)
+            self.integ = Integrator(
+                d, scheme, dt, vi_solver, linear, petsc_options, friction,
+                scheme_options={k: method.get(k) for k in ("hht_alpha", "restitution")},
+                contact=method.get("contact") or "exact",
+                contact_options={k: method.get(k) for k in ("penalty", "nitsche_theta", "nitsche_gamma0")})
         except (PETSc.Error, VIError) as e:  # e.g. a -sdm_ option PETSc (or the step solver) does not accept
             raise SolverSetupError(f"PETSc could not set up the step solver: {_petsc_message(e)}") from None
         self.nsteps = num_steps(T, dt)
@@ -128,10 +144,12 @@ class _Loop:
         self.identity = {"problem": problem.describe(), "pair": d.pair.name, "mass": d.mass, "scheme": scheme,
                          "dt": dt, "vi_solver": vi_solver, "linear": linear, "ranks": self.comm.size,
                          "mesh": self.fingerprint,
-                         **({"friction": friction.describe()} if friction is not None and friction.on else {})}
+                         **({"friction": friction.describe()} if friction is not None and friction.on else {}),
+                         **_method_identity(method)}
         self.fields_of = {"U": (d.W, self.U), "V": (d.H if self.integ.block else d.W, self.V)}
         self.history = SolverHistory(self.integ)
         self.files = self.lock = None
+        self.observe = None
 
     def open(self, out, restart, write_every, extra_info, folder_seen=None):
         """The folder's lock, run.json's first version, the restart (if any) and the files
@@ -150,6 +168,10 @@ class _Loop:
             self.lock = FolderLock(out, self.comm)      # a second process in this folder stops here
             if folder_seen is not None and not restart:
                 same_run_as_checked(out, folder_seen["run_id"], self.comm)
+        if restart and getattr(integ, "stateful", False):
+            raise checkpoint.CheckpointError(
+                f"scheme {integ.scheme!r} keeps state between steps that a checkpoint does not hold (U and V "
+                f"only): it cannot restart; rerun from t = 0")
         if restart:
             self.first, self.run_id, outputs = _restart.resume(out, self.identity, self.fields_of, integ,
                                                                self.nsteps, self.comm, self.history)
@@ -169,6 +191,8 @@ class _Loop:
         row = self.series.record(n, n * self.dt, self.U, self.V, self.lam, its, n_active, step)
         if self.files is not None:
             self.files.row(row)
+        if self.observe is not None:
+            self.observe(n, n * self.dt, self.U, self.V, self.integ)
         return row
 
     def run(self, stop, progress, on_step, checkpoint_every, constraint_tol):
@@ -227,7 +251,10 @@ class _Loop:
     def interrupted(self, n, signum, checkpointed):
         msg = f"interrupted after step {n} (t = {n * self.dt:.6g})"
         self.info.update(status="interrupted", interrupted_at_step=n, wall_time=time.perf_counter() - self.wall0)
-        if self.files is not None:
+        if self.files is not None and getattr(self.integ, "stateful", False):
+            msg += f"; scheme {self.integ.scheme!r} cannot restart (state beyond U and V): rerun from t = 0"
+            self.files.update()
+        elif self.files is not None:
             if not checkpointed:
                 self.checkpoint(n)
             msg += f"; checkpoint written, continue with: python -m sdm_dolfinx run --restart {self.out}"
@@ -291,6 +318,13 @@ class _Loop:
             self.files.tidy()
         self.integ.destroy()
         return Result(self.series.data, self.info, self.gap_imposed, self.gap_end, self.U, self.V, self.discretisation)
+
+
+def _method_identity(method):
+    """The method options that differ from today's defaults (constraint at the vertices, exact
+    contact, no scheme parameter): they join the run's identity (run.json, checkpoints)."""
+    defaults = {"constrain": "vertices", "contact": "exact"}
+    return {k: v for k, v in method.items() if v is not None and v != defaults.get(k)}
 
 
 def _petsc_message(e):

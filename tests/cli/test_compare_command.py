@@ -1,0 +1,73 @@
+"""The compare command: bad input in one line (exit 2, nothing run or written), --list, and a tiny
+grid run twice (the second run reuses every finished run: resumable)."""
+import json
+
+from mpi4py import MPI
+
+import pytest
+
+from sdm_dolfinx import cli
+from sdm_dolfinx.paper.compare_methods import CATALOGUE
+
+COMM = MPI.COMM_WORLD
+PROG = "python -m sdm_dolfinx compare: error:"
+
+# (argv, expected fragment of the one-line message)
+BAD = [
+    ([], "--problem is required"),
+    (["--problem", "nosuch", "--quick"], "unknown problem 'nosuch'"),
+    (["--problem", "membrane", "--h", "0.1,x", "--dt", "0.01"], "not a number"),
+    (["--problem", "membrane", "--h", "0", "--dt", "0.01"], "positive"),
+    (["--problem", "membrane", "--h", "1/0", "--dt", "0.01"], "not a number"),
+    (["--problem", "membrane", "--h", "0.1", "--dt", "-0.01"], "positive"),
+    (["--problem", "membrane", "--h", "0.1", "--dt", "0.003"], "whole number of steps"),
+    (["--problem", "membrane", "--h", "0.1", "--dt", "0.01", "--dt-ratio", "0.1"], "not both"),
+    (["--problem", "membrane", "--h", "0.1"], "--dt"),
+    (["--problem", "membrane", "--h", "0.1", "--dt", "0.01", "--methods", "sdm-p2p1,bogus"], "unknown method(s) bogus"),
+    (["--problem", "membrane", "--h", "0.1", "--dt", "0.01", "--methods", ","], "--methods needs"),
+    (["--problem", "membrane", "--h", "0.1", "--dt", "0.01", "--param", "f"], "NAME=VALUE"),
+    (["--problem", "membrane", "--h", "0.1", "--dt", "0.01", "--param", "nosuch=1"], "no parameter 'nosuch'"),
+    (["--problem", "membrane", "--h", "0.1", "--dt", "0.01", "--reference", "bogus"], "invalid choice"),
+    (["--problem", "membrane", "--h", "0.1", "--dt", "0.01", "--T", "0"], "positive"),
+    (["--problem", "membrane", "--quick", "--bogus"], "unrecognized"),
+]
+
+
+@pytest.mark.parametrize("argv, fragment", BAD)
+def test_compare_refuses_bad_input_in_one_line(argv, fragment, mpi_tmp_path, capsys):
+    out = mpi_tmp_path / "cmp"
+    assert cli.main(["compare", *argv, "--out", str(out)]) == 2
+    if COMM.rank == 0:
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith(PROG) and fragment in err[0], err
+        assert not out.exists()
+
+
+def test_compare_lists_every_method(capsys):
+    assert cli.main(["compare", "--list"]) == 0
+    if COMM.rank == 0:
+        lines = capsys.readouterr().out.strip().splitlines()
+        assert [ln.split()[0] for ln in lines] == [m.name for m in CATALOGUE]
+
+
+def test_compare_is_resumable_and_reports_refusals(mpi_tmp_path, capsys):
+    """Two methods on the rod at one (h, dt) against its closed form: a method the problem refuses (the
+    constraint at every boundary node: in 1-D the contact boundary is one vertex) is reported as
+    refused, not a crash; a rerun computes nothing and writes the same table."""
+    out = mpi_tmp_path / "cmp"
+    argv = ["compare", "--problem", "rod1d", "--methods", "sdm-p2p1,sdm-nodes", "--h", "1/10", "--dt", "0.05",
+            "--T", "0.5", "--out", str(out)]
+    assert cli.main(argv) == 0
+    first = capsys.readouterr().out
+    table = (out / "compare.csv").read_text() if COMM.rank == 0 else None
+    assert cli.main(argv) == 0
+    second = capsys.readouterr().out
+    if COMM.rank == 0:
+        data = json.loads((out / "compare.json").read_text())
+        status = {r["method"]: r["status"] for r in data["records"]}
+        assert status == {"sdm-p2p1": "finished", "sdm-nodes": "refused"}
+        assert "(done before)" not in first and second.count("(done before)") == 2
+        for name in ("compare.csv", "ranking.md", "ranking.html", "compare_convergence.png", "compare_energy.png"):
+            assert (out / name).exists(), name
+        assert (out / "compare.csv").read_text() == table and table.count("\n") == 3     # header + two runs
+        assert "refused: in 1-D" in (out / "ranking.md").read_text()
