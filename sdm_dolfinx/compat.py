@@ -68,6 +68,13 @@ def petsc_vec(f):
     return f.vector
 
 
+def element_degree(V):
+    """The polynomial degree of V's element (a method of the UFL element on 0.5, a property of
+    basix.ufl's on 0.9)."""
+    d = V.ufl_element().degree
+    return int(d() if callable(d) else d)
+
+
 def form(expr, jit_options=None, quadrature_degree=None):
     """``fem.form`` with JIT options (``jit_params`` in 0.5, ``jit_options`` later) and a
     quadrature degree.

@@ -277,7 +277,7 @@ class FieldErrors:
         self.component = d.problem.constraint_component or 0
         space = d.W
         if self.raise_degree:
-            deg = d.W.ufl_element().degree() + self.raise_degree
+            deg = compat.element_degree(d.W) + self.raise_degree
             space = compat.function_space(d.problem.mesh, compat.element("Lagrange", compat.cell_name(
                 d.problem.mesh), deg, tuple(d.problem.shape)))
         self.ue, self.e, self.ui = fem.Function(space), fem.Function(space), fem.Function(space)

@@ -24,6 +24,7 @@ import scipy.sparse
 import ufl
 from dolfinx import fem, mesh as dmesh
 
+from sdm_dolfinx import compat
 from sdm_dolfinx.method.discretisation import Discretisation
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.mpiutil import gather_rows
@@ -79,7 +80,7 @@ def moments(d):
                 g.interpolate(lambda x, f=f, c=c: np.vstack([f(x) if k == c else 0.0 * x[0] for k in range(ncomp)]))
             else:
                 g.interpolate(f)
-            vecs.append(g.vector.copy())
+            vecs.append(compat.petsc_vec(g).copy())
     Q = np.zeros((len(vecs), len(vecs)))
     y = vecs[0].duplicate()
     for j, b in enumerate(vecs):
@@ -264,7 +265,7 @@ def test_one_and_two_ranks_give_the_same_quadratic_forms(pair, mass, constrain):
         d = Discretisation(the_block(comm), pair, mass, constrain=constrain)
         g = fem.Function(d.W)
         g.interpolate(lambda x: np.vstack([np.sin(x[0] / 3) * x[1], np.cos(x[1] / 2) + x[0] ** 2]))
-        v, y = g.vector.copy(), g.vector.copy()
+        v, y = compat.petsc_vec(g).copy(), compat.petsc_vec(g).copy()
         d.mass_mult(v, y)
         return v.dot(y)
     par = kinetic(COMM)

@@ -96,8 +96,7 @@ GAMMA0_NOTE = ("theta = 1 needs gamma0 above an inverse-inequality constant (pap
 
 def _degree(V):
     """The polynomial degree of V's element (its sub-element's for a vector element)."""
-    e = V.ufl_element()
-    return int(e.degree())
+    return compat.element_degree(V)
 
 
 class Nitsche:
