@@ -94,11 +94,12 @@ def metrics(ts, dt, mass, height, v, ref):
 
 
 class PressureAtPeak:
-    """``simulate``'s observer: the nodal pressures lambda_i / |Gamma_i| and the radii r_i of the
+    """``simulate``'s observer: the multipliers lambda_i, lumped areas |Gamma_i| and radii r_i of the
     constrained vertices at the step of largest contact force (gathered by :meth:`result`)."""
 
     def __init__(self):
-        self.best, self.r, self.p, self.t = -1.0, np.zeros(0), np.zeros(0), None
+        self.best, self.t = -1.0, None
+        self.r = self.lam = self.area = np.zeros(0)
 
     def __call__(self, n, t, U, V, integ):
         if n == 0:
@@ -108,24 +109,39 @@ class PressureAtPeak:
         F = d.comm.allreduce(float(np.sum(lam)), op=MPI.SUM)
         if F > self.best:
             self.best, self.t = F, t
-            self.r = np.hypot(d.cx[0], d.cx[1]).copy()
-            self.p = (lam / d.cmeasure).copy()
+            self.r, self.lam, self.area = np.hypot(d.cx[0], d.cx[1]), lam.copy(), np.asarray(d.cmeasure).copy()
 
     def result(self, comm):
-        """(r, pressure) of every constrained vertex at the peak on rank 0 (None elsewhere), and its time."""
-        r, p = gather_rows(self.r, comm), gather_rows(self.p, comm)
-        return (None if r is None else {"r": r.tolist(), "pressure": p.tolist(), "t": self.t, "F": self.best})
+        """{r, lam, area, t, F} of every constrained vertex at the peak on rank 0 (None elsewhere)."""
+        parts = [gather_rows(a, comm) for a in (self.r, self.lam, self.area)]
+        if comm.rank != 0:
+            return None
+        return {"r": parts[0].tolist(), "lam": parts[1].tolist(), "area": parts[2].tolist(), "t": self.t,
+                "F": self.best}
 
 
-def run_one(level, dt, pair="P2/P1", linear="auto", comm=MPI.COMM_WORLD, **problem_args):
-    """One ball run at ``level`` and ``dt``: its :func:`metrics`, force history and peak pressures."""
+def ring_pressure(peak, width):
+    """The pressure averaged over rings of ``width``: sum lambda_i / sum |Gamma_i| of the vertices with
+    r_i in each ring (the force per area, which the nodal ratios scatter around); (r_mid, p)."""
+    r, lam, area = (np.asarray(peak[k]) for k in ("r", "lam", "area"))
+    edges = np.arange(0.0, r.max() + width, width)
+    k = np.digitize(r, edges) - 1
+    force, meas = np.bincount(k, lam, len(edges)), np.bincount(k, area, len(edges))
+    keep = meas > 0
+    return (edges + 0.5 * width)[keep], force[keep] / meas[keep]
+
+
+def run_one(level, dt, pair="P2/P1", linear="auto", comm=MPI.COMM_WORLD, out=None, write_every=None,
+            **problem_args):
+    """One ball run at ``level`` and ``dt``: its :func:`metrics`, force and energy histories and peak
+    pressures (``out``, ``write_every``: the run's folder and XDMF interval, as for ``simulate``)."""
     t0 = time.perf_counter()
     problem = ball.problem(comm, level=level, **problem_args)
     ref = ball.hertz_of(problem)
     prm = problem.parameters
     T = prm["height"] / prm["v"] + T_FACTOR * ref["t_c"]
     peak = PressureAtPeak()
-    r = simulate(problem, pair=pair, dt=dt, T=T, linear=linear, observe=peak)
+    r = simulate(problem, pair=pair, dt=dt, T=T, linear=linear, observe=peak, out=out, write_every=write_every)
     ts = r.timeseries
     mass = ball.total_mass(problem)
     row = {"level": level, "dt": dt, "pair": pair, "h": prm["h"], "h_contact": prm["h_contact"],
@@ -133,7 +149,8 @@ def run_one(level, dt, pair="P2/P1", linear="auto", comm=MPI.COMM_WORLD, **probl
                                                             * r.discretisation.W.dofmap.index_map_bs),
            "mass_error": mass / ref["mass"] - 1.0, "ranks": comm.size, "hertz": ref,
            **metrics(ts, dt, mass, prm["height"], prm["v"], ref),
-           "history": {"t": np.asarray(ts["t"]).tolist(), "F": np.asarray(ts["contact_force"]).tolist()},
+           "history": {k: np.asarray(ts[c]).tolist() for k, c in (("t", "t"), ("F", "contact_force"),
+                                                                   ("energy", "energy"))},
            "peak": peak.result(comm), "seconds": time.perf_counter() - t0,
            "setup_seconds": r.info.get("setup_time")}
     return row
@@ -187,17 +204,20 @@ def plot_pressure(rows, path):
         if row["peak"] and (row["level"] not in finest or row["dt"] < finest[row["level"]]["dt"]):
             finest[row["level"]] = row
     for k, row in enumerate(finest.values()):
-        pk = row["peak"]
-        rr, pp = np.asarray(pk["r"]), np.asarray(pk["pressure"])
+        pk, c = row["peak"], COLOURS[k % 6]
+        rr, pp = np.asarray(pk["r"]), np.asarray(pk["lam"]) / np.asarray(pk["area"])
         keep = rr <= 1.6 * ref["a"]
-        ax.plot(rr[keep], pp[keep], "o", ms=3.5, color=COLOURS[k % 6], alpha=0.8,
+        ax.plot(rr[keep], pp[keep], "o", ms=3.0, color=c, alpha=0.45,
                 label=f"level {row['level']} (a/h_c = {row['a_over_h']:.0f}), dt = {row['dt']:.0e} s, "
-                      f"F = {pk['F']:.3f} N")
+                      f"F = {pk['F']:.3f} N: nodal")
+        rm, pm = ring_pressure(pk, row["h_contact"])
+        keep = rm <= 1.6 * ref["a"]
+        ax.plot(rm[keep], pm[keep], "-", color=c, lw=1.6, label="... averaged over rings of width h_c")
     ax.axvline(ref["a"], color="0.5", lw=0.8, ls="--")
     ax.set_xlabel("distance r from the axis (mm)")
     ax.set_ylabel("contact pressure λ_i / |Γ_i| (N/mm²)")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=7, loc="lower left")
     ax.set_title("pressure at maximal compression (nodal multiplier / lumped area)")
     fig.tight_layout()
     return save(fig, path)
@@ -207,7 +227,6 @@ def study(runs=DEFAULT_RUNS, out="report/hertz", pair="P2/P1", linear="auto", co
     """Run ``runs`` ((level, dt) pairs); write hertz.json, hertz.md and the two PNGs to ``out`` (rank 0).
 
     Returns the rows (every rank)."""
-    out = Path(out)
     rows = []
     for level, dt in runs:
         row = run_one(level, dt, pair=pair, linear=linear, comm=comm)
@@ -216,12 +235,18 @@ def study(runs=DEFAULT_RUNS, out="report/hertz", pair="P2/P1", linear="auto", co
             say(f"level {level} dt {dt:g}: t_c {100 * row['err_t_c']:+.2f} %, F_max {100 * row['err_F_max']:+.2f} %, "
                 f"delta_max {100 * row['err_delta_max']:+.2f} %, {row['seconds']:.0f} s")
     if comm.rank == 0:
-        out.mkdir(parents=True, exist_ok=True)
-        atomic_write_text(out / "hertz.json", json_text(rows))
-        atomic_write_text(out / "hertz.md", table(rows))
-        plot_force(rows, out / "hertz_force.png")
-        plot_pressure(rows, out / "hertz_pressure.png")
+        write_outputs(rows, out)
     return rows
+
+
+def write_outputs(rows, out):
+    """hertz.json, hertz.md and the two PNGs of ``rows`` in ``out`` (call on one rank)."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(out / "hertz.json", json_text(rows))
+    atomic_write_text(out / "hertz.md", table(rows))
+    plot_force(rows, out / "hertz_force.png")
+    plot_pressure(rows, out / "hertz_pressure.png")
 
 
 def parse_run(text):
@@ -236,8 +261,16 @@ def main(argv=None):
     ap.add_argument("--pair", default="P2/P1")
     ap.add_argument("--linear", default="auto", help="the step solver's linear strategy (see run --help)")
     ap.add_argument("--out", default="report/hertz")
+    ap.add_argument("--replot", nargs="+", default=None, metavar="JSON",
+                    help="redraw from these hertz.json files (their rows joined) instead of running")
     args = ap.parse_args(argv)
-    rows = study(args.runs, args.out, args.pair, args.linear)
+    if args.replot:
+        import json
+        rows = [r for f in args.replot for r in json.loads(Path(f).read_text())]
+        if MPI.COMM_WORLD.rank == 0:
+            write_outputs(rows, args.out)
+    else:
+        rows = study(args.runs, args.out, args.pair, args.linear)
     if MPI.COMM_WORLD.rank == 0:
         print(table(rows), end="")
     return 0
