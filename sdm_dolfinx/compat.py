@@ -35,7 +35,8 @@ BUBBLE_DEGREE = {"interval": 2, "triangle": 3, "tetrahedron": 4}
 
 def p1_bubble_element(cell, shape=()):
     """P1 enriched with the cell's bubble (the paper's P1+: the cubic bubble of a triangle; on an
-    interval the quadratic one, basix's "Bubble" of degree 2, so that P1+ spans P2 there)."""
+    interval the quadratic one, basix's "Bubble" of degree 2, so that P1+ spans P2 there; on a
+    tetrahedron the quartic one, the lowest basix has)."""
     degree = BUBBLE_DEGREE[cell]
     if NEW_API:  # pragma: no cover
         e = basix.ufl.enriched_element([basix.ufl.element("Lagrange", cell, 1),
