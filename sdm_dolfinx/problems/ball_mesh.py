@@ -18,6 +18,7 @@ import numpy as np
 
 from sdm_dolfinx import compat
 from sdm_dolfinx.problems.disc_mesh import MeshError  # noqa: F401  (one class: the CLI reports it in one line)
+from sdm_dolfinx.problems.disc_mesh import _Gmsh     # the same gmsh session handling as the disc
 
 #: facet tags of the boundary: the lower hemisphere (every node at z <= the centre) and the rest
 LOWER, UPPER = 1, 2
@@ -68,25 +69,6 @@ def _build_model(gmsh, h, h_contact, a, radius, centre, order):
         gmsh.option.setNumber(name, value)
     gmsh.model.mesh.generate(3)
     gmsh.model.mesh.setOrder(order)
-
-
-class _Gmsh:
-    """gmsh initialised and finalised around a block (as :class:`.disc_mesh._Gmsh`)."""
-
-    def __enter__(self):
-        import gmsh
-        self.gmsh = gmsh
-        self.owner = not getattr(gmsh, "isInitialized", lambda: False)()
-        if self.owner:
-            gmsh.initialize()
-        gmsh.option.setNumber("General.Terminal", 0)
-        return gmsh
-
-    def __exit__(self, *exc):
-        if self.owner:
-            self.gmsh.finalize()
-        else:
-            self.gmsh.model.remove()
 
 
 def check_sizes(h, h_contact, radius):
