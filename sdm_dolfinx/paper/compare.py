@@ -25,7 +25,7 @@ import numpy as np
 from sdm_dolfinx import problems
 from sdm_dolfinx.mpiutil import atomic_write_text, json_text
 from sdm_dolfinx.paper import compare_figures, compare_reference, compare_table
-from sdm_dolfinx.paper.compare_grid import Job, fmt, run_job
+from sdm_dolfinx.paper.compare_grid import METRICS_FILE, Job, fmt, run_job
 from sdm_dolfinx.paper.compare_methods import METHODS, select
 from sdm_dolfinx.paper.metrics import jsonable
 from sdm_dolfinx.post import compare_metrics as cm
@@ -198,9 +198,12 @@ def run_comparison(cmp, comm=COMM, say=None):
         rec = run_job(job, cmp.problem, truths.problem(job), truths.truth_of, comm, truths.exact(job),
                       truths.against)
         records.append(rec)
-        say(f"[{k + 1}/{len(jobs)}] {job.label()}: {_progress(rec)}"
-            f"{' (done before)' if rec.get('cached') else f' ({time.perf_counter() - t0:.1f} s)'}"
-            f"  [{time.perf_counter() - t_start:.0f} s]")
+        if not rec.get("cached"):       # a progress line per run computed now; the others are counted below
+            say(f"[{k + 1}/{len(jobs)}] {job.label()}: {_progress(rec)} ({time.perf_counter() - t0:.1f} s)"
+                f"  [{time.perf_counter() - t_start:.0f} s]")
+    done = sum(1 for r in records if r.get("cached"))
+    if done:
+        say(f"{done} of {len(jobs)} runs done before (read from their folders' {METRICS_FILE})")
     return records
 
 

@@ -66,7 +66,8 @@ def test_compare_is_resumable_and_reports_refusals(mpi_tmp_path, capsys):
         data = json.loads((out / "compare.json").read_text())
         status = {r["method"]: r["status"] for r in data["records"]}
         assert status == {"sdm-p2p1": "finished", "sdm-nodes": "refused"}
-        assert "(done before)" not in first and second.count("(done before)") == 2
+        assert "done before" not in first and "[1/2]" in first
+        assert "2 of 2 runs done before" in second and "[1/2]" not in second
         for name in ("compare.csv", "ranking.md", "ranking.html", "compare_convergence.png", "compare_energy.png"):
             assert (out / name).exists(), name
         assert (out / "compare.csv").read_text() == table and table.count("\n") == 3     # header + two runs
