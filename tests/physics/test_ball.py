@@ -37,6 +37,11 @@ def rel_dev(E):
 
 
 # ------------------------------------------------------------------------------ closed forms
+#: the 3-D runs on one rank only (make test runs the suite on 2 ranks too: the partition is
+#: tested once, by test_one_and_two_ranks_agree, and the 3-D runs double make test's time)
+SERIAL = pytest.mark.skipif(COMM.size > 1, reason="3-D runs: serial (the 2-rank agreement is its own test)")
+
+
 def test_hertz_closed_forms_against_the_ode():
     """ball.hertz (Beta function, closed forms) against an independent evaluation: the ODE
     m delta'' = -4/3 E* sqrt(R) delta^(3/2) integrated by SciPy (rtol 1e-11) from delta = 0,
@@ -116,6 +121,7 @@ def test_mesh_curved_and_refined_at_the_contact():
 
 # ------------------------------------------------------------------------- discrete identities
 @pytest.mark.parametrize("pair", ["P2/P1", "P2/P2"])
+@SERIAL
 def test_free_flight(pair):
     """Without the plane every point moves at -v e_z: U = -v t e_z exactly (A e_z = 0, the
     midpoint rule is exact for uniform motion), the momentum is -m v and the energy m v^2/2
@@ -132,6 +138,7 @@ def test_free_flight(pair):
 
 
 @pytest.mark.parametrize("pair,gravity", [("P2/P1", 0.0), ("P2/P1", 9810.0), ("P2/P2", 0.0)])
+@SERIAL
 def test_impulse_equals_momentum_change(pair, gravity):
     """dt sum_n F^{n+1} = p^N - p^0 + m g T, p = e_z^T M Vbar (the ``momentum_y`` column, along
     z), F the sum of the multipliers: multiplying a step's equation K X - b = lam by e_z^T
@@ -149,6 +156,7 @@ def test_impulse_equals_momentum_change(pair, gravity):
         assert impulse == pytest.approx(2 * m * V, rel=0.01)
 
 
+@SERIAL
 def test_energy_changes_by_the_work_of_the_multipliers():
     """P2/P1, midpoint, dt = 4e-5 through the whole impact: every step's energy change is the work
     lam . (U^{n+1} - U^n) of the contact forces (the discrete energy identity of the singular
@@ -173,6 +181,7 @@ def test_energy_changes_by_the_work_of_the_multipliers():
     assert abs(E[-1] - E[0]) < 1e-3 * E[0]
 
 
+@SERIAL
 def test_p2p1_energy_through_the_impact_converges():
     """P2/P1, midpoint: the energy after the ball has left the plane approaches E^0 as dt -> 0
     (measured 3.5e-4, 1.3e-4, 2.9e-5 at dt = 4e-5, 2e-5, 1e-5: each halving must gain at least
@@ -190,6 +199,7 @@ def test_p2p1_energy_through_the_impact_converges():
     assert final[-1] < 1e-4, final
 
 
+@SERIAL
 def test_p2p2_gains_energy_in_the_contact():
     """P2/P2 (standard mass) at dt = 1e-5 gains more than 10 % energy during the contact (measured
     +21 %; +3 % at 4e-5, +21 % again at 5e-6: it does not vanish as dt -> 0, the disc's
@@ -200,6 +210,7 @@ def test_p2p2_gains_energy_in_the_contact():
     assert rel_dev(run("P2/P1", 1e-5, 4.5e-3)["energy"]) < 5e-3
 
 
+@SERIAL
 def test_coarse_ball_against_hertz():
     """P2/P1, level 1 (2 cells on the contact radius), dt = 4e-5: the contact lasts t_c within
     10 %, the peak force F_max within 5 % and the approach delta_max within 15 % of Hertz's
