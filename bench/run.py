@@ -57,11 +57,17 @@ SUITES = {
                     "sizes": [5], "max_size": {}},
     "disc-level6": {"problem": "disc", "pair": "P2/P1", "dt": 2.5e-5, "T": 0.02, "sizes": [6],
                     "max_size": {}},
+    # the 3-D ball (issue 19): 25 steps of flight from 0.1 mm, then 50 of contact up to about the
+    # maximal compression (Hertz: t_c = 3.9 ms, so the contact steps are the loaded half)
+    "ball": {"problem": "ball", "pair": "P2/P1", "dt": 4e-5, "T": 3e-3, "height": 0.1,
+             "sizes": [1, 2, 3, 4, 5], "max_size": {"lu": 1, "rsls": 1, "amg": 2, "cg-amg": 2, "cg-factor": 2}},
 }
 
 QUICK = {
     "membrane": {"problem": "membrane", "pair": "P1+/P0", "dt": 2e-3, "T": 0.4, "sizes": [4, 8], "max_size": {}},
     "disc": {"problem": "disc", "pair": "P2/P1", "dt": 2e-4, "T": 0.014, "sizes": [1], "max_size": {}},
+    "ball": {"problem": "ball", "pair": "P2/P1", "dt": 4e-5, "T": 2.4e-4, "height": 0.004, "sizes": [1],
+             "max_size": {}},
 }
 
 
@@ -69,9 +75,9 @@ def make_problem(spec, comm):
     if spec["problem"] == "membrane":
         from sdm_dolfinx import membrane
         return membrane.problem(N=spec["size"], comm=comm)
-    from sdm_dolfinx import disc
+    from sdm_dolfinx.problems import ball, disc
     extra = {"height": spec["height"]} if "height" in spec else {}
-    return disc.problem(level=spec["size"], comm=comm, **extra)
+    return {"disc": disc, "ball": ball}[spec["problem"]].problem(level=spec["size"], comm=comm, **extra)
 
 
 def peak_rss_mb():
@@ -256,17 +262,21 @@ def slope(dofs, times):
     return float(np.polyfit(np.log(dofs), np.log(times), 1)[0])
 
 
+TITLES = {"membrane": "membrane P1+/P0, dt = 1e-3, 400 steps", "disc": "disc P2/P1, dt = 5e-5, 400 steps",
+          "ball": "ball (3-D) P2/P1, dt = 4e-5, 75 steps"}
+
+
 def plot(out, png):
-    """Log-log time per step against dofs, one line per (problem, strategy, ranks)."""
+    """Log-log time per step against dofs, one line per (problem, strategy, ranks); for the ball
+    (when recorded) also the peak memory per rank."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(1, 2, figsize=(12, 5))
-    for ax, name in zip(axes, ("membrane", "disc")):
-        path = out / f"{name}.json"
-        if not path.exists():
-            continue
-        recs = [r for r in json.loads(path.read_text())["records"] if r.get("status") == "finished"]
+    names = [n for n in TITLES if (out / f"{n}.json").exists()]
+    ball = "ball" in names
+    fig, axes = plt.subplots(1, len(names) + ball, figsize=(6 * (len(names) + ball), 5), squeeze=False)
+    for ax, name in zip(axes[0], names):
+        recs = [r for r in json.loads((out / f"{name}.json").read_text())["records"] if r.get("status") == "finished"]
         lines = sorted({(r["strategy"], r["ranks"]) for r in recs})
         for strat, ranks in lines:
             rs = sorted((r for r in recs if r["strategy"] == strat and r["ranks"] == ranks), key=lambda r: r["dofs"])
@@ -274,8 +284,19 @@ def plot(out, png):
                       label=f"{strat}, {ranks} rank{'s' if ranks > 1 else ''}")
         ax.set_xlabel("dofs (dim W^h)")
         ax.set_ylabel("mean time per step (s)")
-        ax.set_title({"membrane": "membrane P1+/P0, dt = 1e-3, 400 steps",
-                      "disc": "disc P2/P1, dt = 5e-5, 400 steps"}[name])
+        ax.set_title(TITLES[name])
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+    if ball:
+        ax = axes[0][-1]
+        recs = [r for r in json.loads((out / "ball.json").read_text())["records"] if r.get("status") == "finished"]
+        for strat, ranks in sorted({(r["strategy"], r["ranks"]) for r in recs}):
+            rs = sorted((r for r in recs if r["strategy"] == strat and r["ranks"] == ranks), key=lambda r: r["dofs"])
+            ax.loglog([r["dofs"] for r in rs], [max(r["peak_rss_mb"]) / 1024 for r in rs],
+                      "o-" if ranks == 1 else "s--", label=f"{strat}, {ranks} rank{'s' if ranks > 1 else ''}")
+        ax.set_xlabel("dofs (dim W^h)")
+        ax.set_ylabel("peak resident memory of the largest rank (GiB)")
+        ax.set_title("ball (3-D): memory per rank")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
     fig.tight_layout()
