@@ -24,6 +24,7 @@ from sdm_dolfinx.run.folder import RunFolderError, check_out, read_info
 from sdm_dolfinx.run.result import num_steps
 from sdm_dolfinx.run.simulate import simulate
 from sdm_dolfinx.solvers import LINEAR_STRATEGIES, VI_SOLVERS
+from sdm_dolfinx.solvers.memory import run_bytes
 
 #: the run options and their defaults where the problem declares none
 RUN_DEFAULTS = {"pair": "P1+/P0", "scheme": "midpoint", "dt": 1e-3, "T": 0.8, "mass": None, "vi_solver": "ssn",
@@ -289,7 +290,10 @@ def estimate_memory(spec, values, pair, options=None, steps=0, ranks=1, inspect=
     of u: a vector problem's rows have twice the nonzeros), doubled for solvers that refactorise
     (:data:`REFACTORISING`), plus :data:`BYTES_PER_PROCESS` per rank and ~100 bytes per step of
     time series. Measured runs needed 0.75-0.9 times the estimate (membrane N = 100-400, every pair;
-    disc levels 4-5; inspections 0.75).
+    disc levels 4-5; inspections 0.75). In 3-D (``counts["dim"]``, or a 3-component u) the
+    factorisation's fill grows as n^(4/3): :func:`sdm_dolfinx.solvers.memory.run_bytes`, a fit of
+    the ball's measured peak RSS (levels 1-4), of the factorised or the iterative strategy
+    (``auto``: the smaller, as ``auto`` goes iterative when the factorisation does not fit).
     """
     estimate = getattr(spec, "estimate", None)
     counts = estimate(values) if estimate is not None else None
@@ -298,6 +302,20 @@ def estimate_memory(spec, values, pair, options=None, steps=0, ranks=1, inspect=
     pair = get_pair(pair) if isinstance(pair, str) else pair
     vs = counts.get("value_size", 1)
     dim_w = vs * _lagrange_dofs(*pair.w, counts)
+    dim = counts.get("dim", 3 if vs == 3 else 2)
+    if not inspect and dim >= 3:     # 3-D: the factor's fill grows faster than n (solvers.memory)
+        o = options or {}
+        linear = o.get("linear", "auto")
+        factorised = run_bytes(dim_w, dim, factorised=True)
+        if o.get("vi_solver", "ssn") != "ssn" or linear == "lu":
+            need = REFACTORISING * factorised
+        elif linear in ("amg", "cg-amg", "cg-gamg"):
+            need = run_bytes(dim_w, dim, factorised=False)
+        elif linear == "auto":           # auto takes cg-gamg when the factorisation does not fit
+            need = min(factorised, run_bytes(dim_w, dim, factorised=False))
+        else:
+            need = factorised
+        return need + BYTES_PER_PROCESS * ranks + 100.0 * steps, dim_w
     if inspect:
         per_dof = INSPECT_BYTES_PER_DOF
     else:

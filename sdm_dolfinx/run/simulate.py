@@ -162,6 +162,8 @@ class _Loop:
                      "lambda_probe": {"vertex": self.cprobe.vertex[:2].tolist(),
                                       "definition": "nodal multiplier / lumped nodal measure (>= 0: obstacle pushes)"},
                      "solver_options_prefix": getattr(integ.solver, "prefix", None),
+                     "linear_strategy": getattr(integ, "linear_strategy", None),
+                     "linear_strategy_reason": getattr(integ, "linear_reason", None),
                      "status": "running", **extra_info}
         self.out, self.restarted, self.first = out, bool(restart), 0
         if out is not None:
@@ -210,6 +212,9 @@ class _Loop:
             signum = stop.agreed(self.comm)
             if signum and self.first < self.nsteps:     # a signal during the set-up: the files exist now
                 self.interrupted(self.first, signum, checkpointed=False)
+            if progress and self.comm.rank == 0 and self.info["linear"] == "auto":
+                info = self.info
+                print(f"  linear strategy {info['linear_strategy']} ({info['linear_strategy_reason']})", flush=True)
             last_print = time.perf_counter()
             for n in range(self.first, self.nsteps):
                 # the state before each step, so that a failed run's files end with its last good step

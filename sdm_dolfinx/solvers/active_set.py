@@ -10,32 +10,67 @@ from petsc4py import PETSc
 
 import numpy as np
 
+from sdm_dolfinx.solvers import memory
 from sdm_dolfinx.solvers.base import VIError
-from sdm_dolfinx.solvers.factorisation import mumps_margins
-from sdm_dolfinx.solvers.options import ksp_reason_name
+from sdm_dolfinx.solvers.factorisation import REDUNDANT_MAX_ROWS, mumps_margins
+from sdm_dolfinx.solvers.options import ksp_reason_name, scoped_options
 
 #: linear strategies of the semi-smooth Newton (see :class:`~sdm_dolfinx.solvers.semismooth.SemismoothNewton`)
-LINEAR_STRATEGIES = ("auto", "schur", "cg-factor", "lu", "amg", "cg-amg")
+LINEAR_STRATEGIES = ("auto", "schur", "cg-factor", "lu", "amg", "cg-amg", "cg-gamg")
 
 #: ``auto`` takes ``schur`` up to this many constrained dofs, ``amg`` beyond: many
 #: constraints (the membrane, N_g ~ N^2) mean active sets of thousands in the impact phase,
-#: where CG + BoomerAMG scales best (bench/README.md)
+#: where CG + BoomerAMG scales best (bench/README.md); in 3-D see :func:`choose_strategy`
 SCHUR_MAX_CONSTRAINTS = 10000
 
 #: the strategies that run a Krylov method on :class:`ReducedOperator` with :class:`ReducedPC`
-SHELL_STRATEGIES = ("cg-factor", "cg-amg", "schur")
+SHELL_STRATEGIES = ("cg-factor", "cg-amg", "cg-gamg", "schur")
+
+#: PETSc GAMG's default options for ``cg-gamg`` (``-<prefix>gamg_...`` overrides): smoothed
+#: aggregation with the near-nullspace (the rigid body modes,
+#: :func:`~sdm_dolfinx.method.iterative.rigid_body_modes`), Chebyshev/Jacobi smoothing (a fixed
+#: linear preconditioner, as CG needs); other smoothing steps and thresholds measured within the
+#: noise on the ball (bench/README.md)
+GAMG_OPTIONS = {"pc_gamg_type": "agg", "pc_gamg_agg_nsmooths": "1", "pc_gamg_threshold": "0.01",
+                "mg_levels_ksp_type": "chebyshev", "mg_levels_pc_type": "jacobi"}
+
+#: ``cg-gamg`` builds GAMG on the matrix composed with K under PMAT (a sparse P ~ K) and applies
+#: K as the Mat composed under PRODUCT, when there are
+#: (:func:`sdm_dolfinx.method.iterative.attach`); otherwise on K and with K
+PMAT, PRODUCT = "sdm_gamg_pmat", "sdm_fast_product"
 
 
-def choose_strategy(num_constraints, spd):
-    """What ``linear="auto"`` means: ``schur``, or ``amg`` for many constraints (SPD only)."""
-    return "schur" if num_constraints <= SCHUR_MAX_CONSTRAINTS or not spd else "amg"
+def choose_strategy(num_constraints, spd, n=None, dim=2, comm=None, explain=False):
+    """What ``linear="auto"`` means (``explain``: also the one-line reason).
+
+    ``schur``, or ``amg`` for many constraints (SPD only); in 3-D (``dim`` 3, ``n`` = dim W^h)
+    ``cg-gamg`` when the factorised run's memory (:func:`~sdm_dolfinx.solvers.memory.run_bytes`,
+    a fit of measured peak RSS) exceeds MEMORY_MARGIN of the memory available per rank
+    (MemAvailable / ranks on the node): the iterative strategy is several times slower per step
+    (bench/README.md) but needs no factor.
+    """
+    name = "schur" if num_constraints <= SCHUR_MAX_CONSTRAINTS or not spd else "amg"
+    why = (f"{num_constraints} constrained dofs {'<=' if name == 'schur' else '>'} {SCHUR_MAX_CONSTRAINTS}"
+           if spd else "K is not SPD")
+    need = memory.run_bytes(n, dim) if (spd and n is not None) else None
+    if need is not None and name == "schur":
+        comm = comm or MPI.COMM_WORLD
+        if n > REDUNDANT_MAX_ROWS:      # distributed: the factor is shared by the ranks
+            need /= comm.size
+        avail = memory.available_per_rank(comm)
+        if avail is not None:
+            fits = need <= memory.MEMORY_MARGIN * avail
+            name = "schur" if fits else "cg-gamg"
+            why = (f"a factorisation needs ~{need / 1e9:.2g} GB per rank, {avail / 1e9:.2g} GB available per rank"
+                   f"{'' if fits else ': iterative'}")
+    return (name, why) if explain else name
 
 
 class ReducedOperator:
     """y = K_A x: K with the active rows and columns replaced by the identity."""
 
-    def __init__(self, K, active_mask):
-        self.K, self.mask = K, active_mask
+    def __init__(self, K, active_mask, product=None):
+        self.K, self.mask = (product or K), active_mask
         self.tmp = K.createVecRight()
 
     def mult(self, mat, x, y):
@@ -100,9 +135,16 @@ class InactiveSetSolver:
         if self.linear in SHELL_STRATEGIES:
             if self.linear in ("cg-factor", "schur"):
                 apply_P = self.fac.solve
+            elif self.linear == "cg-gamg":
+                apply_P = self._gamg_preconditioner().solve
+                ksp.setInitialGuessNonzero(True)     # the previous iterate: fewer iterations
+                # the true residual: GAMG's preconditioned norm is ~||K||^-1 smaller (the string:
+                # 1e-12 of it left residuals of 1e-7 max|b|)
+                ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
             else:
                 apply_P = self._amg_preconditioner().solve
-            op = PETSc.Mat().createPython([(n, N), (n, N)], ReducedOperator(K, self.mask), comm=self.comm)
+            product = K.query(PRODUCT) if self.linear == "cg-gamg" else None
+            op = PETSc.Mat().createPython([(n, N), (n, N)], ReducedOperator(K, self.mask, product), comm=self.comm)
             op.setUp()
             self.op = op
             ksp.setOperators(op)
@@ -133,6 +175,21 @@ class InactiveSetSolver:
         ka.getPC().setHYPREType("boomeramg")
         ka.setFromOptions()
         ka.setUp()
+        self.ksp_amg = ka
+        return ka
+
+    def _gamg_preconditioner(self):
+        """One GAMG set-up for the whole run (``cg-gamg``; prefix ``<prefix>gamg_``, defaults
+        :data:`GAMG_OPTIONS`): the hierarchy from P (:data:`PMAT`, with its near-nullspace), the
+        smoothing on K (:data:`PRODUCT`)."""
+        ka = PETSc.KSP().create(self.comm)
+        ka.setOptionsPrefix(self.prefix + "gamg_")
+        ka.setOperators(self.K.query(PRODUCT) or self.K, self.K.query(PMAT) or self.K)
+        ka.setType("preonly")
+        ka.getPC().setType("gamg")
+        with scoped_options(self.prefix + "gamg_", GAMG_OPTIONS):
+            ka.setFromOptions()
+            ka.setUp()
         self.ksp_amg = ka
         return ka
 

@@ -8,15 +8,32 @@ constraints (each computed once per run and cached), a Newton system x_A = lb_A,
 (E_A^T Z) mu = lb_A - x0_A; mu is the multiplier. The Newton iterations are then dense
 work only; large active sets fall back to Krylov (:mod:`sdm_dolfinx.solvers.active_set`).
 """
+import time
+
 from mpi4py import MPI
 
 import numpy as np
 
-#: ``schur`` solves a Newton system by the dense Schur complement while |active| is at most
-#: this and at most SCHUR_MAX_COLUMNS columns are cached; otherwise by CG (GMRES) on the
-#: inactive set preconditioned by the same factorisation (``cg-factor``)
+#: ``schur`` solves a Newton system by the dense Schur complement while |active| is at most a
+#: threshold between SCHUR_MAX_ACTIVE and SCHUR_MAX_COLUMNS (and at most SCHUR_MAX_COLUMNS
+#: columns are cached); otherwise by CG (GMRES) on the inactive set preconditioned by the same
+#: factorisation (``cg-factor``). The threshold is measured once per run (SCHUR_COST_MODEL,
+#: :meth:`SchurComplement.max_active`): m with SCHUR_DENSE_FACTOR c3 m^3 = SCHUR_FALLBACK_SOLVES
+#: t_solve, c3 m^3 the time of a dense solve of size m (c3 timed on the machine at m = 256),
+#: t_solve that of one solve with the factorisation (the fastest step solve so far). Measured on
+#: 1 rank at load ~4: membrane N = 80 (t_solve 0.25 ms) impact steps take 63 ms with the threshold
+#: 100, 172 ms with 294, 162 ms with 1000 (the dense path's new columns, gathers and products cost
+#: ~30 times c3 m^3 at m ~ 300: SCHUR_DENSE_FACTOR; the model then gives 100); ball level 3
+#: (t_solve 0.14 s), 50 steps from the contact's start, up to 168 active: the model gives 784,
+#: 0.95 s per step (4.4 solves) against 8.7 s (27 solves) with 100, load 2-3.5.
 SCHUR_MAX_ACTIVE = 100
 SCHUR_MAX_COLUMNS = 1000
+#: False: the threshold is SCHUR_MAX_ACTIVE itself (tests that force the CG fallback)
+SCHUR_COST_MODEL = True
+#: solves per Newton iteration of the CG fallback (measured: membrane N = 80 ~14, ball level 3 ~24)
+SCHUR_FALLBACK_SOLVES = 14
+#: the dense path's cost per Newton iteration over c3 m^3 (measured, membrane N = 80; see above)
+SCHUR_DENSE_FACTOR = 30
 
 #: full cached columns K^-1 e_i are kept while they take less than this per rank (bytes);
 #: beyond, each step ends with one more solve instead of a product with the columns
@@ -49,10 +66,14 @@ class SchurComplement:
         self._ncols = 0
         self._x0 = self.K.createVecRight()
         self._rhs = self.K.createVecLeft()
+        self._t_solve = np.inf          # the fastest step solve so far (s)
+        self._max_active = None         # measured once (max_active)
 
     def start(self, b):
         """x0 = K^-1 b, once per step; the iterations reuse it."""
+        t0 = time.perf_counter()
         self.fac.solve(b, self._x0)
+        self._t_solve = min(self._t_solve, time.perf_counter() - t0)
         self.its += 1
         self._x0c = self._x0.array_r[self.cdofs].copy()
 
@@ -84,6 +105,26 @@ class SchurComplement:
             self._slot[g] = self._ncols + j
         self._ncols = need
 
+    def max_active(self):
+        """The largest active set solved by the dense system (collective; measured once, at the
+        first active set above SCHUR_MAX_ACTIVE), within [SCHUR_MAX_ACTIVE, SCHUR_MAX_COLUMNS]
+        (the cost model: see the module's constants)."""
+        if not SCHUR_COST_MODEL:
+            return SCHUR_MAX_ACTIVE
+        if self._max_active is None:
+            m, rng = 256, np.random.default_rng(0)
+            S = rng.random((m, m)) + m * np.eye(m)
+            r = np.ones(m)
+            t = np.inf
+            for _ in range(3):
+                t0 = time.perf_counter()
+                np.linalg.solve(S, r)
+                t = min(t, time.perf_counter() - t0)
+            m_star = (SCHUR_FALLBACK_SOLVES * self._t_solve * m ** 3 / (SCHUR_DENSE_FACTOR * t)) ** (1.0 / 3.0)
+            m_star = int(min(max(m_star, SCHUR_MAX_ACTIVE), SCHUR_MAX_COLUMNS))
+            self._max_active = self.comm.allreduce(m_star, op=MPI.MIN)
+        return self._max_active
+
     def system(self, active):
         """x_c and the multipliers for active set ``active`` from the cached columns, or None
         when the active set is too large (then Krylov on the inactive set instead).
@@ -97,7 +138,7 @@ class SchurComplement:
         parts = comm.allgather(la)
         gA = np.concatenate(parts) if parts else la
         new = sum(1 for g in gA.tolist() if g not in self._slot)
-        if len(gA) > SCHUR_MAX_ACTIVE or self._ncols + new > SCHUR_MAX_COLUMNS:
+        if self._ncols + new > SCHUR_MAX_COLUMNS or (len(gA) > SCHUR_MAX_ACTIVE and len(gA) > self.max_active()):
             return None                                    # too large: Krylov instead
         self._ensure_columns(gA.tolist())
         slots = np.array([self._slot[g] for g in gA.tolist()], dtype=np.int64)

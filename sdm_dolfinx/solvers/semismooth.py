@@ -45,8 +45,13 @@ class SemismoothNewton:
             * ``"amg"``: CG + BoomerAMG on the reduced matrix, set up at every iteration.
             * ``"cg-amg"``: CG on the inactive set preconditioned by one BoomerAMG set-up
               of K for the whole run (for sizes where a factorisation does not fit).
+            * ``"cg-gamg"``: CG on the inactive set preconditioned by one PETSc GAMG set-up
+              (the hierarchy from the sparse P and the rigid body modes that
+              :func:`sdm_dolfinx.method.iterative.attach` composes with K; K's own otherwise):
+              no factorisation, for 3-D sizes whose factor does not fit.
             * ``"auto"``: :func:`choose_strategy` (``schur`` unless there are many
-              constrained dofs).
+              constrained dofs; the integrator also passes the dimension and size: in 3-D
+              ``cg-gamg`` when a factorisation would not fit in memory).
         prefix: PETSc options prefix of this instance (same on every rank); None: a new
             ``sdm_<k>_`` (:func:`~sdm_dolfinx.solvers.options.instance_prefix`). Options
             under it, then the shared ``-sdm_...`` ones, override ``options``.

@@ -58,6 +58,7 @@ def small_schur(monkeypatch):
     """``schur`` with at most 5 active constraints per dense system: larger active sets go
     through its CG fallback (preconditioned by the same factorisation)."""
     monkeypatch.setattr(schur, "SCHUR_MAX_ACTIVE", 5)
+    monkeypatch.setattr(schur, "SCHUR_COST_MODEL", False)    # 5, not a threshold measured above it
 
 
 def test_membrane_strategies_agree():

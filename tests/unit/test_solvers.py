@@ -42,7 +42,7 @@ ITERATIVE_RTOL = 1e-7
 #: up to ||K|| ~ 6e4 times larger at the x rows (measured 2e-7 max|b|; x itself to 1e-10)
 GMRES_RTOL = 1e-6
 #: the strategies that solve each Newton system by a Krylov method
-KRYLOV = ("cg-factor", "amg", "cg-amg")
+KRYLOV = ("cg-factor", "amg", "cg-amg", "cg-gamg")
 
 
 # ------------------------------------------------------------------------------ problems
