@@ -63,17 +63,19 @@ def add_run_options(p, defaults):
                         "vinewtonrsls / vinewtonssls")
     g.add_argument("--linear", choices=LINEAR_STRATEGIES, default=S,
                    help="linear solves of the semi-smooth Newton: auto = schur, or amg above 10000 constrained "
-                        "dofs (default); schur = one factorisation of the step matrix per run, the active set by a "
+                        "dofs, or in 3-D cg-gamg when a factorisation would not fit in memory (default); schur = one factorisation of the step matrix per run, the active set by a "
                         "small dense Schur complement of cached columns K^-1 e_i; cg-factor = one factorisation, CG "
                         "on the inactive set; lu = refactorise at every Newton iteration; amg = CG + BoomerAMG on "
                         "the reduced matrix (set up when the active set changes); cg-amg = CG on the inactive set "
-                        "with one BoomerAMG set-up of the step matrix")
+                        "with one BoomerAMG set-up of the step matrix; cg-gamg = CG on the inactive set with one GAMG "
+                        "set-up (rigid body modes), no factorisation")
     g.add_argument("--quadrature-degree", type=quadrature_degree, default=S, metavar="Q",
                    help=f"quadrature degree of every form: auto = UFL's exact estimate on affine simplices, "
                         f"{quadrature.CURVED_DEGREE} on curved cells (the disc's P2 geometry: entries converged to "
                         f"round-off; default); {quadrature.ESTIMATED} = UFL's estimate everywhere (runs before this "
                         f"option); or an integer from 1 to {quadrature.MAX_DEGREE}")
-    f = p.add_argument_group("friction (2-D problems: the tangent is the other component than the constrained one)")
+    f = p.add_argument_group("friction (2-D and 3-D problems: the tangential components are the ones other "
+                             "than the constrained one)")
     f.add_argument("--friction", choices=friction.LAWS, default=S,
                    help=f"friction at the constrained vertices (default {defaults.get('friction') or 'none'}): "
                         f"coulomb = |lam_T| <= mu lam_N; tresca = |lam_T| <= threshold x the vertex's boundary "

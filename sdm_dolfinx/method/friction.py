@@ -1,16 +1,17 @@
 """Friction at the constrained vertices (Tresca or Coulomb), the run option ``friction``.
 
 At each constrained vertex i the normal dof is the constrained component (the problem's
-``constraint_component``: the obstacle's normal is that axis) and, in 2-D, the tangential dof
-is the other component. Beside the normal multiplier lam_N,i >= 0 a tangential one lam_T,i
-(the obstacle's tangential reaction, a nodal force like lam_N) satisfies
+``constraint_component``: the obstacle's normal is that axis) and the tangential dofs are the
+other components: one in 2-D, two in 3-D (then lam_T,i and d_i are 2-vectors and |.| their
+Euclidean norm: the friction cone is a disc). Beside the normal multiplier lam_N,i >= 0 a
+tangential one lam_T,i (the obstacle's tangential reaction, a nodal force like lam_N) satisfies
 
     Tresca:   |lam_T,i| <= s_i = s * m_i     (s a stress, m_i = the vertex's lumped boundary
                                               measure, as the contact stress is lam_N,i / m_i),
     Coulomb:  |lam_T,i| <= mu lam_N,i,
 
 and opposes the slip d_i of the step: |lam_T,i| < bound => d_i = 0 (stick), d_i != 0 =>
-lam_T,i = -bound sign(d_i) (slip). Tresca acts at every constrained vertex, in contact or
+lam_T,i = -bound d_i / |d_i| (slip; in 2-D -bound sign(d_i)). Tresca acts at every constrained vertex, in contact or
 not (the classical Tresca problem, for a body in lasting contact); Coulomb's bound vanishes
 off contact.
 
@@ -22,15 +23,19 @@ Which slip: d = X_t - U^n_t, the step's increment of the iterate the scheme cons
                                              numerical dissipation),
 
 and U^{n+1} - U^n = 2 (X - U^n) (midpoint) or X - U^n (backward Euler), so the tangential
-part is 2 sum lam_T,i d_i = -2 sum bound_i |d_i| <= 0 (midpoint): friction only removes
+part is 2 sum lam_T,i . d_i = -2 sum bound_i |d_i| <= 0 (midpoint, 2-D and 3-D): friction only removes
 energy, and E + ``dissipated`` (the cumulative -lam_T . (U^{n+1} - U^n)_t) is conserved by
 the midpoint scheme whenever the normal contact does no work (a body resting on the
 obstacle). A slip measured from U^{n-1/2} instead (the previous constrained iterate) would
 leave a term lam_T . (U^{n-1/2} - U^n) of either sign in the balance.
 
-The step problem is solved by :class:`~sdm_dolfinx.solvers.friction.FrictionalNewton`
-(Hüeber, Stadler, Wohlmuth's primal-dual active set with stick and slip sets), with the
-step matrix factorised once per run as without friction.
+The step problem is solved by :class:`~sdm_dolfinx.solvers.friction.FrictionalNewton` (2-D)
+or :class:`~sdm_dolfinx.solvers.friction_cone.FrictionalNewtonCone` (3-D) (Hüeber, Stadler,
+Wohlmuth's primal-dual active set with stick and slip sets), with the step matrix factorised
+once per run as without friction. In 3-D the step's ``tangential_force`` is |sum lam_T| and
+``tangential_force_t`` its two components; ``Integrator.slip`` and ``Integrator.lam_t`` are
+per-vertex sizes |U^{n+1} - U^n|_t and |lam_T| (``Integrator.slip_t`` and the solver's ``lam_t``
+keep both components).
 """
 from dataclasses import dataclass
 from typing import Optional
@@ -107,18 +112,22 @@ def make(friction=None, mu=None, threshold=None):
 
 
 def contact_dofs(discretisation, friction):
-    """(tangential dofs paired with ``discretisation.cdofs``, the Tresca thresholds per vertex or
-    None) for ``friction``; ValueError (one line) for a problem friction does not apply to."""
+    """(tangential dofs paired with ``discretisation.cdofs``: m in 2-D, m x 2 in 3-D; the Tresca
+    thresholds per vertex or None) for ``friction``; ValueError (one line) for a problem friction
+    does not apply to."""
     d = discretisation
     p = d.problem
     shape = tuple(p.shape)
     if not shape:
         raise ValueError(f"friction {friction.law}: problem {p.name!r} has a scalar unknown (no tangential "
                          f"direction)")
-    if shape[0] != 2:
-        raise ValueError(f"friction {friction.law}: only 2-D problems so far (problem {p.name!r} has "
+    if shape[0] not in (2, 3):
+        raise ValueError(f"friction {friction.law}: problems with 2 or 3 components only (problem {p.name!r} has "
                          f"{shape[0]} components)")
     comp = p.constraint_component
-    tdofs = (d.cdofs - comp + (1 - comp)).astype(np.int32)
+    if shape[0] == 2:
+        tdofs = (d.cdofs - comp + (1 - comp)).astype(np.int32)
+    else:                               # 3-D: the two other components, in increasing order (m x 2)
+        tdofs = np.column_stack([d.cdofs - comp + c for c in range(3) if c != comp]).astype(np.int32)
     thresholds = friction.threshold * d.cmeasure if friction.law == "tresca" else None
     return tdofs, thresholds

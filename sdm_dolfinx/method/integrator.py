@@ -24,10 +24,11 @@ from mpi4py import MPI
 
 import numpy as np
 
-from sdm_dolfinx.method import friction as _friction, schemes, step_matrix as _step_matrix
+from sdm_dolfinx.method import friction as _friction, iterative as _iterative, schemes, step_matrix as _step_matrix
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.solvers import VIError, choose_strategy, make_vi_solver, sparse_factor_matrix
 from sdm_dolfinx.solvers.friction import FrictionalNewton
+from sdm_dolfinx.solvers.friction_cone import FrictionalNewtonCone
 
 #: the registered time schemes' names (:mod:`sdm_dolfinx.method.schemes`)
 SCHEMES = schemes.names()
@@ -105,8 +106,14 @@ class Integrator:
 
     def _make_solver(self, vi_solver, linear, options, contact_options):
         d = self.discretisation
+        #: the linear strategy used, and why (``auto``: :func:`~sdm_dolfinx.solvers.choose_strategy`)
+        self.linear_strategy, self.linear_reason = linear, "asked for"
         if linear == "auto":
-            linear = choose_strategy(d.num_constraints, not self.block)
+            linear, why = choose_strategy(d.num_constraints, not self.block, self.K.getSize()[0],
+                                          d.problem.mesh.topology.dim, d.comm, explain=True)
+            self.linear_strategy, self.linear_reason = linear, f"auto: {why}"
+        if linear == "cg-gamg" and not self.block:     # GAMG's near-nullspace, P ~ K, a cheap K x
+            self._gamg = _iterative.attach(self.K, d, self.coefficients)
         # a factorisation of K = c_M B^T D^-1 B + A is cheaper through the sparser
         # augmented matrix [A, sqrt(c_M) B^T; sqrt(c_M) B, -D] when M is much denser than A (P2/P1)
         factorised = self.friction is not None or (vi_solver == "ssn" and linear in ("schur", "cg-factor"))
@@ -134,10 +141,11 @@ class Integrator:
             self.tdofs, thresholds = _friction.contact_dofs(d, f)
         except ValueError as e:
             raise DiscretisationError(str(e)) from None
-        self.solver = FrictionalNewton(self.K, d.cdofs, self.tdofs, d.lb, law=f.law, mu=f.mu, threshold=thresholds,
-                                       symmetric_positive=not self.block, options=options,
-                                       factor_matrix=self.factor_matrix)
+        cls = FrictionalNewtonCone if self.tdofs.ndim == 2 else FrictionalNewton      # 3-D: m x 2 tangential dofs
+        self.solver = cls(self.K, d.cdofs, self.tdofs, d.lb, law=f.law, mu=f.mu, threshold=thresholds,
+                          symmetric_positive=not self.block, options=options, factor_matrix=self.factor_matrix)
         self.slip = np.zeros(len(self.tdofs))
+        self.slip_t = np.zeros(self.tdofs.shape)
 
     def _build(self):
         d, ts = self.discretisation, self.time_scheme
@@ -247,17 +255,30 @@ class Integrator:
 
     def _friction_info(self, info, u, un):
         """The step's tangential force, slip (U^{n+1} - U^n at the tangential dofs) and friction
-        work lam_T . (U^{n+1} - U^n)_t (<= 0), reduced over the ranks, into ``info``."""
+        work lam_T . (U^{n+1} - U^n)_t (<= 0), reduced over the ranks, into ``info`` (3-D: the
+        force's size and its components ``tangential_force_t``; ``slip`` per vertex its size)."""
         comm = self.discretisation.comm
-        self.slip = u[self.tdofs] - un[self.tdofs]
+        self.slip_t = u[self.tdofs] - un[self.tdofs]
         lam_t = self.solver.lam_t
-        force, work = comm.allreduce(np.array([np.sum(lam_t), np.dot(lam_t, self.slip)]), op=MPI.SUM)
-        info.update(tangential_force=float(force), friction_work=float(work))
+        if lam_t.ndim == 1:
+            self.slip = self.slip_t
+            force, work = comm.allreduce(np.array([np.sum(lam_t), np.dot(lam_t, self.slip)]), op=MPI.SUM)
+            info.update(tangential_force=float(force), friction_work=float(work))
+            return
+        # 3-D: the force's two tangential components; slip (per vertex) is |(U^{n+1} - U^n)_t|
+        self.slip = np.linalg.norm(self.slip_t, axis=1)
+        total = comm.allreduce(np.r_[lam_t.sum(axis=0), np.sum(lam_t * self.slip_t)], op=MPI.SUM)
+        info.update(tangential_force=float(np.hypot(total[0], total[1])), tangential_force_t=total[:2].tolist(),
+                    friction_work=float(total[2]))
 
     @property
     def lam_t(self):
-        """Tangential multipliers of the last step at the owned constrained vertices (friction; else 0)."""
-        return self.solver.lam_t if self.friction is not None else np.zeros(len(self.discretisation.cdofs))
+        """Tangential multipliers of the last step at the owned constrained vertices (friction; else 0;
+        3-D: their size |lam_T|, the solver's ``lam_t`` has both components)."""
+        if self.friction is None:
+            return np.zeros(len(self.discretisation.cdofs))
+        lam_t = self.solver.lam_t
+        return lam_t if lam_t.ndim == 1 else np.linalg.norm(lam_t, axis=1)
 
     def contact_status(self, active):
         """Per owned constrained vertex, given which are in contact (``active``): 0 not in contact,

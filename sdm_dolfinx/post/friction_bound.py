@@ -24,6 +24,7 @@ so the bound is the pair's, the mesh's and the time step's.
 import numpy as np
 
 from sdm_dolfinx.method.discretisation import Discretisation
+from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.method.friction import Friction
 from sdm_dolfinx.method.integrator import Integrator
 
@@ -72,6 +73,9 @@ def coulomb_bound(problem, pair, dt, scheme="midpoint", mass=None, samples=SAMPL
     ``samples`` random patterns, the same on every rank), ``mu_c`` (the smaller), the number
     of contact vertices, dt and the scheme.
     """
+    if tuple(problem.shape) == (3,):
+        raise DiscretisationError(f"--coulomb-bound is derived for 2-D problems (one tangential direction), not "
+                                  f"for problem {problem.name!r} (3 components: a disc-shaped friction cone)")
     d = Discretisation(problem, pair, mass)
     integ = Integrator(d, scheme, dt, friction=Friction("coulomb", mu=0.0))
     try:

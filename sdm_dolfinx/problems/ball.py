@@ -2,11 +2,13 @@
 
 Linear elasticity (Young's modulus E, Poisson's ratio nu), density rho, a ball of radius R
 whose lowest point A starts --height above the plane with the downward speed v; gravity g
-along -e_z is off by default (--gravity 9810 for the Earth's). Frictionless unilateral contact
+along -e_z is off by default (--gravity 9810 for the Earth's); --vt (mm/s, along --vt-angle
+degrees from x in the plane) adds a tangential velocity for an oblique impact, with Coulomb
+friction (--friction coulomb --mu 0.3; sdm_dolfinx.paper.ball_oblique). Unilateral contact
 z + u_z >= 0 at the boundary vertices of the lower hemisphere (as the disc's y + u_y >= 0 in
-2-D). Curved P2 tetrahedra refined toward A (ball_mesh). Units: mm, N, s, tonne as for the
-disc (stresses in N/mm^2 = MPa, densities in t/mm^3, forces in N, energies in N mm = mJ,
-momenta in t mm/s = N s).
+2-D), frictionless by default. Curved P2 tetrahedra refined toward A (ball_mesh). Units: mm,
+N, s, tonne as for the disc (stresses in N/mm^2 = MPa, densities in t/mm^3, forces in N,
+energies in N mm = mJ, momenta in t mm/s = N s).
 
 Defaults: R = 20 mm, E = 10 N/mm^2, nu = 0.3, rho = 1e-9 t/mm^3 (1000 kg/m^3), v = 100 mm/s
 (0.1 m/s), the issue's choice for Hertz's quasi-static theory: v / c = 1e-3 (c = sqrt(E/rho) =
@@ -60,6 +62,8 @@ UNITS = {"level": "-", "h": "mm (gmsh mesh size far from the contact)",
          "h_contact": "mm (gmsh mesh size near the contact point)", "radius": "mm", "centre": "mm",
          "height": "mm (initial height of the lowest point A above the plane z = 0)",
          "E": "N/mm^2", "nu": "-", "rho": "t/mm^3", "v": "mm/s (initial downward speed, whole ball)",
+         "vt": "mm/s (initial tangential speed, whole ball, along vt_angle)",
+         "vt_angle": "degrees (direction of vt in the plane, from x towards y)",
          "gravity": "mm/s^2 (along -e_z)", "lame_lambda": "N/mm^2", "lame_mu": "N/mm^2",
          "mass": "t (rho 4/3 pi R^3)", "hertz": "mm, N, s, N/mm^2 (ball.hertz at the impact speed)",
          "probe": "mm (point A, the lowest boundary vertex: u_probe and lambda_probe are recorded there)",
@@ -102,6 +106,14 @@ def hertz_pressure(r, a, p0):
     return p0 * np.sqrt(np.clip(1.0 - (r / a) ** 2, 0.0, None))
 
 
+def tangential_velocity(vt, vt_angle):
+    """(v_x, v_y) (mm/s) of the tangential speed ``vt`` along ``vt_angle`` degrees from the x axis
+    (exact for multiples of 90 degrees: 0 -> (vt, 0))."""
+    a = math.radians(vt_angle)
+    c, s = (1.0, 0.0) if vt_angle == 0.0 else (math.cos(a), math.sin(a))
+    return vt * c, vt * s
+
+
 def impact_speed(v, gravity, height):
     """The speed at which A reaches the plane: sqrt(v^2 + 2 g height) (mm/s)."""
     return math.sqrt(v ** 2 + 2.0 * gravity * height)
@@ -140,7 +152,7 @@ def mesh_sizes(level, h, h_contact, radius, a):
     return hf, min(hf, hc) if h_contact is None else h_contact
 
 
-def _build(comm, level, h, h_contact, radius, height, E, nu, rho, v, gravity, with_contact):
+def _build(comm, level, h, h_contact, radius, height, E, nu, rho, v, gravity, with_contact, vt=0.0, vt_angle=0.0):
     """The ball Problem for declared values (see :data:`SPEC`)."""
     cz = radius + height
     ref = hertz(radius, E, nu, rho, impact_speed(v, gravity, height))
@@ -148,6 +160,7 @@ def _build(comm, level, h, h_contact, radius, height, E, nu, rho, v, gravity, wi
     msh, ft = ball_mesh.make_mesh(hf, hc, ref["a"], radius, (0.0, 0.0, cz), comm=comm)
     tol = 1e-8 * radius
     lmbda, mu = lame(E, nu)
+    vx, vy = tangential_velocity(vt, vt_angle)
 
     def contact_vertices(m):
         if not with_contact:
@@ -164,7 +177,7 @@ def _build(comm, level, h, h_contact, radius, height, E, nu, rho, v, gravity, wi
         a=lambda u, w: ufl.inner(sigma(u, lmbda, mu), ufl.sym(ufl.grad(w))) * ufl.dx,
         l=lambda w: rho * ufl.inner(g, w) * ufl.dx,
         u0=lambda x: np.zeros((3, x.shape[1])),
-        v0=lambda x: np.vstack([np.zeros(x.shape[1]), np.zeros(x.shape[1]), np.full(x.shape[1], -v)]),
+        v0=lambda x: np.vstack([np.full(x.shape[1], vx), np.full(x.shape[1], vy), np.full(x.shape[1], -v)]),
         constraint_vertices=contact_vertices,
         lower_bound=lambda x: -x[2],                 # the plane z = 0: z + u_z >= 0
         constraint_component=2,
@@ -174,8 +187,8 @@ def _build(comm, level, h, h_contact, radius, height, E, nu, rho, v, gravity, wi
         momentum_component=2,
         parameters={"level": level if h is None and h_contact is None else None, "h": hf, "h_contact": hc,
                     "radius": radius, "height": height, "centre": [0.0, 0.0, cz], "E": E, "nu": nu, "rho": rho,
-                    "v": v, "gravity": gravity, "with_contact": with_contact, "lame_lambda": lmbda,
-                    "lame_mu": mu, "contact_nodes": "vertices", "geometry_degree": 2,
+                    "v": v, "vt": vt, "vt_angle": vt_angle, "gravity": gravity, "with_contact": with_contact,
+                    "lame_lambda": lmbda, "lame_mu": mu, "contact_nodes": "vertices", "geometry_degree": 2,
                     "mass": rho * 4.0 / 3.0 * math.pi * radius ** 3, "hertz": ref,
                     "probe": "lowest boundary vertex ({:.10g}, {:.10g}, {:.10g})".format(*probe)},
         units=dict(UNITS))
@@ -202,6 +215,10 @@ PARAMS = (
     Param("nu", 0.3, "Poisson's ratio", low=0.0, high=0.49),
     Param("rho", 1e-9, "density (1e-9 t/mm^3 = 1000 kg/m^3)", unit="t/mm^3", low=0.0, low_strict=True),
     Param("v", 100.0, "initial downward speed of the ball", unit="mm/s", low=0.0, low_strict=True),
+    Param("vt", 0.0, "initial tangential speed of the ball (along --vt-angle in the plane; an oblique "
+          "impact with --friction coulomb --mu MU)", unit="mm/s"),
+    Param("vt_angle", 0.0, "direction of --vt in the plane z = 0, from the x axis towards y", unit="degrees",
+          low=-360.0, high=360.0),
     Param("gravity", 0.0, "gravitational acceleration along -e_z (0: off; 9810 for the Earth's)", unit="mm/s^2",
           low=0.0),
     Param("with_contact", True, "remove the plane (free flight)", flag="no-contact"),
@@ -235,7 +252,8 @@ SPEC = ProblemSpec(
 
 def problem(comm=MPI.COMM_WORLD, **values):
     """The falling ball; ``values`` are :data:`PARAMS` (``level``, ``h``, ``h_contact``, ``radius``,
-    ``height``, ``E``, ``nu``, ``rho``, ``v``, ``gravity``, ``with_contact``), the others at their defaults."""
+    ``height``, ``E``, ``nu``, ``rho``, ``v``, ``vt``, ``vt_angle``, ``gravity``, ``with_contact``), the others at
+    their defaults."""
     return SPEC.problem(comm, **values)
 
 

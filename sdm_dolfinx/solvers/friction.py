@@ -1,11 +1,12 @@
-"""The frictional step solver: Signorini contact with Tresca or Coulomb friction (2-D), by the
+"""The frictional step solver: Signorini contact with Tresca or Coulomb friction (2-D; 3-D in
+:mod:`~sdm_dolfinx.solvers.friction_cone`, a subclass), by the
 primal-dual active set method with stick and slip sets of S. Hüeber, G. Stadler,
 B. Wohlmuth, SIAM J. Sci. Comput. 30 (2008) 572–596 (HSW), i.e. the semi-smooth Newton
 method on the complementarity functions of P. Alart, A. Curnier (1991).
 
 At each contact vertex i there is a normal dof n_i (along the contact normal, the dof the
 frictionless solver constrains) and one tangential dof t_i (2-D: friction is a box
-constraint per vertex; 3-D would need a disc and HSW's other linearisation). Sign convention: r = K x - b is
+constraint per vertex; 3-D, a disc: :mod:`~sdm_dolfinx.solvers.friction_cone`). Sign convention: r = K x - b is
 the reaction the obstacle applies to the body (K x = b + r), zero off the contact dofs;
 lam_N = r_n (>= 0 when the obstacle pushes), lam_T = r_t, and d = x_t - xref_t is the slip
 of the step (xref: the previous step's constrained iterate, given by the caller). Then
@@ -137,17 +138,18 @@ class FrictionalNewton:
         with scoped_options(self.prefix, self.options, inherit=True) as scope:
             self.rtol, self.max_it, self.monitor = vi_tolerances(scope, rtol, max_it)
             self.fac = Factorisation(K, symmetric_positive, self.prefix + "factor_", aug=factor_matrix)
-        self.system = FrictionSystem(K, np.concatenate([self.ndofs, self.tdofs]), self.fac)
+        # the contact dofs: normal, then each tangential component (3-D: tdofs is m x 2)
+        self.system = FrictionSystem(K, np.concatenate([self.ndofs, self.tdofs.T.reshape(-1)]), self.fac)
         diag = K.getDiagonal()
         self.c_n, self.k_t = (self._mean(diag.array_r[dofs]) for dofs in (self.ndofs, self.tdofs))
         diag.destroy()
-        self.lam, self.lam_t = np.zeros(m), np.zeros(m)
+        self.lam, self.lam_t = np.zeros(m), np.zeros(self.tdofs.shape)
         self.active, self.stick, self.slip = (np.zeros(m, dtype=bool) for _ in range(3))
         self._sets = None               # (active, stick, sigma) to start the next solve from
 
     def _mean(self, values):
         total = self.comm.allreduce(float(np.sum(values)), op=MPI.SUM)
-        n = self.comm.allreduce(len(values), op=MPI.SUM)
+        n = self.comm.allreduce(int(np.size(values)), op=MPI.SUM)
         return total / n if n else 1.0
 
     @property
@@ -170,14 +172,14 @@ class FrictionalNewton:
             VIError: no convergence, or a singular Newton system.
         """
         xref = np.asarray(xref_t, dtype=float)
-        if xref.shape != (self.m,):
-            raise ValueError(f"xref_t has shape {xref.shape}; expected ({self.m},)")
+        if xref.shape != self.tdofs.shape:
+            raise ValueError(f"xref_t has shape {xref.shape}; expected {self.tdofs.shape}")
         tol = self.rtol * max(b.norm(PETSc.NormType.NORM_INFINITY), 1e-300)
         self.system.start(b)
         if self._sets is None:          # the first step: contact where x penetrates, stick where friction
             active = x.array_r[self.ndofs] < self.lb
             stick = active if self.s is None else self.s > 0.0
-            self._sets = (active, stick, np.ones(self.m))
+            self._sets = (active, stick, self._initial_sigma())
         info = self._step(xref, tol)
         self.system.finish(b, x)
         x.array[self.ndofs[self.active]] = self.lb[self.active]
@@ -185,6 +187,10 @@ class FrictionalNewton:
         counts = (np.count_nonzero(v) for v in (self.active, self.stick, self.slip))
         n = self.comm.allreduce(np.array(list(counts)), op=MPI.SUM)
         return {**info, "n_active": int(n[0]), "n_stick": int(n[1]), "n_slip": int(n[2])}
+
+    def _initial_sigma(self):
+        """The slip directions before the first step (2-D: +1 per vertex)."""
+        return np.ones(self.m)
 
     def _predict(self, xn, lamN, lamT, d, sets, s):
         """The sets the complementarity functions select at an iterate (the semi-smooth

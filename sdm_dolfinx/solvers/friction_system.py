@@ -161,6 +161,59 @@ class FrictionSystem:
         self._last = r
         return xc, r
 
+    def cone(self, active, stick, slip, lb, xref, A, B, e, q):
+        """The 3-D Newton system (:mod:`~sdm_dolfinx.solvers.friction_cone`): x at the contact
+        dofs (normal, then the two tangential components) and their reactions r.
+
+        Conditions: x_n = lb (``active``), x_t = xref (``stick``, both components) and on the
+        ``slip`` vertices the linearised cone, two rows per vertex i:
+        A_i lam_T + B_i (x_t - xref) + e_i lam_N = q_i (A, B: m x 2 x 2; e, q: m x 2; e != 0
+        only where the vertex is active); every other reaction 0. Unknowns: the reactions of
+        those dofs, one dense (non-symmetric) system on the cached columns of K^-1.
+
+        Raises:
+            VIError: the dense system is singular.
+        """
+        m = len(active)
+        on = np.concatenate([active, stick | slip, stick | slip])
+        gS, off = self._gather(self.gc[on])
+        pos = np.full(3 * m, -1, dtype=np.int64)
+        pos[on] = off + np.arange(np.count_nonzero(on))
+        self.cols.ensure(gS)
+        Z = self.cols.Zc[:, self.cols.slots(gS)]                 # local contact rows x unknowns
+        x0 = self._x0c
+        ia, it, isl = np.flatnonzero(active), np.flatnonzero(stick), np.flatnonzero(slip)
+        rows, rhs = [Z[ia], Z[m + it], Z[2 * m + it]], [lb[ia] - x0[ia], xref[it, 0] - x0[m + it],
+                                                         xref[it, 1] - x0[2 * m + it]]
+        n = np.arange(len(isl))
+        for comp in (0, 1):                                      # the slip rows, component comp
+            R = np.zeros((len(isl), len(gS)))
+            rr = q[isl, comp].copy()
+            for b in (0, 1):
+                tb = m * (1 + b) + isl
+                R[n, pos[tb]] += A[isl, comp, b]
+                R += B[isl, comp, b][:, None] * Z[tb]
+                rr -= B[isl, comp, b] * (x0[tb] - xref[isl, b])
+            cpl = e[isl, comp] != 0.0
+            R[n[cpl], pos[isl[cpl]]] += e[isl[cpl], comp]
+            rows.append(R)
+            rhs.append(rr)
+        order = np.concatenate([pos[ia], pos[m + it], pos[2 * m + it], pos[m + isl], pos[2 * m + isl]])
+        M = np.zeros((len(gS), len(gS)))
+        y = np.zeros(len(gS))
+        for part_rows, part_rhs, part_order in self.comm.allgather((np.vstack(rows), np.concatenate(rhs), order)):
+            M[part_order] = part_rows
+            y[part_order] = part_rhs
+        try:
+            rS = np.linalg.solve(M, y) if len(gS) else np.zeros(0)
+        except np.linalg.LinAlgError:
+            raise VIError(f"the 3-D frictional Newton system on {len(gS)} contact dofs is singular "
+                          "(Coulomb with a large friction coefficient?)") from None
+        r = np.zeros(3 * m)
+        r[on] = rS[pos[on]]
+        self._last = r
+        return x0 + Z @ rS, r
+
     def finish(self, b, x):
         """The full x of the last :meth:`system`: x0 + sum_j r_j K^-1 e_j over the (at most
         :data:`FINISH_MAX_AXPY`) cached columns with a reaction, one contiguous axpy each,
