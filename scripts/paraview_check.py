@@ -10,12 +10,14 @@ through every time step and checks, at each: the arrays ``displacement``, ``velo
 ``contact_stress`` and ``active`` are there, one value (or 3-vector) per mesh node, finite;
 ``active`` lies in [0, 1] (exactly 0 or 1 at vertices; midside nodes of quadratic meshes
 carry averages); ``contact_stress`` >= 0 (compressive) and nonzero only where ``active`` is;
-times start at 0 and increase. It then writes ``solution_paraview.xdmf`` (the same data as
+times start at 0 and increase; a 2-D run's vectors (written with 3 components) have a zero z
+component, a 3-D run's (its points spanning z) may not. It then writes ``solution_paraview.xdmf`` (the same data as
 one grid per time step, declared double precision, see ``sdm_dolfinx/render.py``), checks it
 gives the same ranges (up to float32 round-off: ParaView reads ``solution.xdmf`` in single
 precision) as a single dataset carrying all four arrays, and, with ``--png``, renders it: the membrane
-warped by its displacement over the obstacle plane, or an elastic body warped by its
-displacement, coloured by the contact stress / displacement magnitude.
+warped by its displacement over the obstacle plane, a 2-D elastic body warped by its
+displacement, coloured by the displacement magnitude (last time step), or a 3-D body (the ball)
+at the time of its largest contact stress, cut by the plane y = 0, over the plane z = 0.
 
 Exit status 0 when every check passed, 1 otherwise; ``--json`` writes the summary (times,
 number of points and cells, and each array's per-time range) for comparison with h5py.
@@ -28,7 +30,7 @@ import sys
 from pathlib import Path
 
 from paraview import servermanager
-from paraview.simple import (ColorBy, GetActiveViewOrCreate, Plane, Render, SaveScreenshot, Show,
+from paraview.simple import (Clip, ColorBy, GetActiveViewOrCreate, Plane, Render, SaveScreenshot, Show, Text,
                              WarpByScalar, WarpByVector, Xdmf3ReaderS)
 from vtkmodules.util.numpy_support import vtk_to_numpy
 
@@ -90,6 +92,9 @@ def inspect(path, fields=None):
         summary.setdefault("blocks", len(blocks))
         arrays = {}
         for b in blocks:
+            if b.GetNumberOfPoints():
+                z = vtk_to_numpy(b.GetPoints().GetData())[:, 2]
+                summary["dim"] = max(summary.get("dim", 2), 3 if float(z.max() - z.min()) > 0 else 2)
             for data, centre in ((b.GetPointData(), "points"), (b.GetCellData(), "cells")):
                 for i in range(data.GetNumberOfArrays()):
                     name = data.GetArrayName(i)
@@ -124,16 +129,21 @@ def inspect(path, fields=None):
                 failures.append(f"{path.name}, t = {t}: contact stress and active set disagree")
         if "displacement" in arrays and arrays["displacement"][0].ndim == 2:
             d = arrays["displacement"][0]
-            if d.shape[1] == 3 and np.any(d[:, 2] != 0):
+            if d.shape[1] == 3 and summary.get("dim") == 2 and np.any(d[:, 2] != 0):
                 failures.append(f"{path.name}, t = {t}: 2-D displacement with a nonzero z component")
     return summary, failures
 
 
-def render(path, png, run):
-    """A picture of the merged file at its last time step (needs an OpenGL context: xvfb-run)."""
+def render(path, png, run, summary=None):
+    """A picture of the merged file (needs an OpenGL context: xvfb-run): its last time step, or for a
+    3-D run (``summary["dim"]``) the time of the largest contact stress."""
     reader = Xdmf3ReaderS(FileName=[str(path)])
     reader.UpdatePipelineInformation()
     t = reader.TimestepValues[-1]
+    three_d = (summary or {}).get("dim") == 3
+    if three_d:
+        peak = summary["arrays"]["contact_stress"]["max"]
+        t = summary["times"][int(np.argmax(peak))]
     view = GetActiveViewOrCreate("RenderView")
     view.ViewSize = [800, 600]
     view.ViewTime = t
@@ -153,6 +163,31 @@ def render(path, png, run):
         ColorBy(d, ("POINTS", "displacement"))
         view.CameraPosition = [1.8, -1.7, 1.1]
         view.CameraFocalPoint = [0.5, 0.5, 0.05]
+        view.CameraViewUp = [0, 0, 1]
+    elif three_d:                                # a 3-D body (the ball): cut by y = 0, over the plane z = 0
+        warped = WarpByVector(Input=reader, Vectors=["POINTS", "displacement"], ScaleFactor=1.0)
+        cut = Clip(Input=warped)
+        cut.ClipType = "Plane"
+        cut.ClipType.Origin = [0.0, 0.0, 0.0]
+        cut.ClipType.Normal = [0.0, 1.0, 0.0]
+        cut.Invert = 0                           # keep y >= 0: the cut face looks at the camera (at y < 0)
+        b = reader.GetDataInformation().GetBounds()
+        w = 0.65 * max(b[1] - b[0], b[3] - b[2])
+        cx, cy = 0.5 * (b[0] + b[1]), 0.5 * (b[2] + b[3])
+        plane = Plane(Origin=[cx - w, cy - w, 0.0], Point1=[cx + w, cy - w, 0.0], Point2=[cx - w, cy + w, 0.0])
+        pd = Show(plane, view)
+        pd.DiffuseColor = [0.6, 0.6, 0.6]
+        pd.ColorArrayName = ["POINTS", ""]
+        d = Show(cut, view)
+        ColorBy(d, ("POINTS", "displacement", "Z"))
+        title = Show(Text(Text=f"3-D run at t = {t:.4g} (largest contact stress): the half y >= 0 near the "
+                           f"contact, coloured by u_z, over the plane z = 0"), view)
+        title.FontSize = 11
+        title.WindowLocation = "Upper Center"
+        Render(view)                             # the first render resets the camera: set it afterwards
+        size = b[5] - b[4]                       # the close-up of the contact zone, about 0.6 diameters wide
+        view.CameraPosition = [cx + 0.3 * size, cy - 1.0 * size, 0.45 * size]
+        view.CameraFocalPoint = [cx, cy, 0.1 * size]
         view.CameraViewUp = [0, 0, 1]
     else:                                        # an elastic body, true scale, in its plane
         warped = WarpByVector(Input=reader, Vectors=["POINTS", "displacement"], ScaleFactor=1.0)
@@ -194,7 +229,7 @@ def main(argv=None):
     summary = {"paraview": servermanager.vtkSMProxyManager.GetParaViewSourceVersion(),
                "reader": "Xdmf3ReaderS", "raw": raw, "merged": merged, "failures": failures}
     if args.png:
-        render(merged_path, args.png, run)
+        render(merged_path, args.png, run, merged)
         summary["png"] = str(args.png)
     if args.json:
         args.json.write_text(json.dumps(summary, indent=1))

@@ -13,6 +13,7 @@ from mpi4py import MPI
 
 from sdm_dolfinx import compat
 from sdm_dolfinx.cli.common import Parser, UsageError, parse_or_help, report_usage_error
+from sdm_dolfinx.paper import hertz_report
 from sdm_dolfinx.paper.report import make_report
 from sdm_dolfinx.paper.runs import duration, ensure_runs, run_state
 from sdm_dolfinx.paper.study import make_study
@@ -50,7 +51,7 @@ def _folders(args):
     return out, runs_dir
 
 
-def dry_run(runs, runs_dir, comm, say):
+def dry_run(runs, runs_dir, comm, say, quick=False):
     """The plan: each run's state and estimated time; nothing is run or written."""
     total = 0.0
     for r in runs:
@@ -59,6 +60,13 @@ def dry_run(runs, runs_dir, comm, say):
         total += est
         say(f"{r.name:58s} {r.steps:6d} steps  dim W {r.dim:7d}  {st:9s} est. {duration(est)}")
     say(f"{len(runs)} runs; estimated {duration(total)} to compute on the reference machine")
+    ball = hertz_report.RUNS[quick]
+    stored = sum(1 for lev, dt in ball if comm.bcast(
+        hertz_report.read_row(runs_dir / "hertz" / hertz_report.run_name(lev, dt), hertz_report.key_of(lev, dt))
+        is not None if comm.rank == 0 else None, root=0))
+    plan = " ".join(f"{lev}:{dt:g}" for lev, dt in ball)
+    say(f"then the report's own studies: the method comparison, and the ball against Hertz ({len(ball)} "
+        f"run{'s' * (len(ball) > 1)}, level:dt {plan}; {stored} stored in {runs_dir / 'hertz'})")
     return 0
 
 
@@ -77,7 +85,7 @@ def main(argv=None):
         return report_usage_error(PROG, e, comm)
     runs = study.runs()
     if args.dry_run:
-        return dry_run(runs, runs_dir, comm, say)
+        return dry_run(runs, runs_dir, comm, say, args.quick)
     if comm.rank == 0:
         out.mkdir(parents=True, exist_ok=True)
         runs_dir.mkdir(parents=True, exist_ok=True)

@@ -21,7 +21,9 @@ plotted against their distance r from the axis, with Hertz's p0 sqrt(1 - r^2/a^2
 
 writes ``hertz.json`` (the rows, with the force histories), ``hertz.md`` (the table),
 ``hertz_force.png`` (F(t) of every run against Hertz's) and ``hertz_pressure.png``
-(``--replot A.json B.json`` redraws them from finished studies).
+(``--replot A.json B.json`` redraws them from finished studies). ``make figures`` runs the same study
+(resumably, levels 1-3) for the report's section "3-D: the ball against Hertz"
+(:mod:`sdm_dolfinx.paper.hertz_report`).
 
 Measured (P2/P1, midpoint, 1 rank; Hertz: t_c = 3.900 ms, F_max = 3.161 N, delta_max = 0.1325 mm;
 t_c is resolved to dt, i.e. +-1 % at dt = 4e-5 s)::
@@ -34,10 +36,11 @@ t_c is resolved to dt, i.e. +-1 % at dt = 4e-5 s)::
     3       53976    6    2e-5    +1.0 %    +1.45 %     +1.6 %         0.04 %      156 s *
     4      107397    8    4e-5    -0.5 %    +1.9 %      +0.7 %         0.13 %      344 s *, 6.1 GB
 
-(* with the step solver's dense Schur path allowed up to 1000 active constraints,
-``solvers.schur.SCHUR_MAX_ACTIVE``; at its default 100 the level-3 contact steps fall back to
-CG preconditioned by the factorisation, 24 solves per Newton iteration: 754 s for 125 steps of
-4e-5 s instead of 83 s.) The rebound speed is 0.9999 v at every level.
+(* measured with the dense Schur path allowed up to 1000 active constraints; the step solver
+now measures that threshold once per run (``solvers.schur.SchurComplement.max_active``: 784 at
+level 3). With the former fixed 100 the level-3 contact steps fell back to CG preconditioned
+by the factorisation, 24 solves per Newton iteration: 754 s for 125 steps of 4e-5 s instead
+of 83 s.) The rebound speed is 0.9999 v at every level.
 
 The remaining dynamic correction: Hertz's theory is quasi-static, and the default ball's contact
 lasts only 4.8 periods of its slowest vibration (0.81 ms). With v = 1 mm/s instead (t_c = 9.8 ms,

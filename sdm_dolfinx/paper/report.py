@@ -8,8 +8,8 @@ from mpi4py import MPI
 import numpy as np
 
 from sdm_dolfinx.mpiutil import atomic_write_text, json_text
-from sdm_dolfinx.paper import (compare_report, disc_figures, figures, friction, friction_impact, metrics, pictures,
-                               table2, table2_report)
+from sdm_dolfinx.paper import (compare_report, disc_figures, figures, friction, friction_impact, hertz_report,
+                               metrics, pictures, table2, table2_report)
 from sdm_dolfinx.paper.runs import duration, read_run_info
 from sdm_dolfinx.paper.study import BE_PAIRS, MEMBRANE_PAIRS
 
@@ -78,6 +78,7 @@ def make_report(study, runs_dir, out, records, comm=COMM, say=print, meta=None):
     conv = table2.convergence(study, t2_errors)
     checks = metrics.energy_checks(study, runs_dir, comm)
     comparison = compare_report.entry(study, runs_dir, out, comm, say)     # issue 18 (collective runs)
+    ball = hertz_report.entries(study, runs_dir, out, comm, say)           # issue 19 (collective runs)
     if comm.rank == 0:
         entries.append(_with_verdict(pictures.picture_membrane(study, runs_dir, out)))
         for pair in MEMBRANE_PAIRS:
@@ -98,6 +99,7 @@ def make_report(study, runs_dir, out, records, comm=COMM, say=print, meta=None):
                         *friction_impact.impact_entries(study.friction, runs_dir, out)]
         if comparison is not None:
             entries.append(comparison)
+        entries += ball
         meta = dict(meta or {}, runs_dir=runs_dir)
         meta["runs_total"] = sum((read_run_info(runs_dir / r.name) or {}).get("wall_time") or 0.0
                                  for r in study.runs())
@@ -128,7 +130,8 @@ def write_report(out, entries, t2, checks, records, study, meta):
     summary = [(e["key"], {"yes": "agrees", "part": "in part", "no": "does not agree"}[_verdict_of(e)])
                for e in entries]
     parts = _head(study, meta) + ["<h2>Summary</h2>" + metrics.html_table(["figure", "verdict"], summary)]
-    first_friction = next((i for i, e in enumerate(entries) if e.get("says") and not e.get("head")), None)
+    first_friction = next((i for i, e in enumerate(entries) if e.get("says") and not e.get("head")
+                           and not e.get("section")), None)
     for i, e in enumerate(entries):
         if i == first_friction:            # entries with a closed form of their own ("says"), not the paper's
             parts.append(_FRICTION_HEAD)
@@ -164,7 +167,8 @@ def _head(study, meta):
     if study.quick:
         parts.append("<p><b>Quick mode:</b> the membrane runs stop at T = 0.5 (the paper: 0.8), dt = 1e-4 is "
                      "skipped, Figs. 9-11 use fewer and coarser meshes, and the disc convergence study stops at "
-                     "level 3, the friction runs use disc level 1 only; verdicts refer to these runs.</p>")
+                     "level 3, the friction runs use disc level 1 only, the ball against Hertz level 1 only; "
+                     "verdicts refer to these runs.</p>")
     return parts
 
 

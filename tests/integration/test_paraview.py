@@ -20,13 +20,14 @@ import pytest
 
 from sdm_dolfinx import disc, membrane, simulate
 from sdm_dolfinx.post import render
+from sdm_dolfinx.problems import ball
 
 COMM = MPI.COMM_WORLD
 pytestmark = pytest.mark.paraview
 ROOT = Path(__file__).resolve().parents[2]
 PVPYTHON = shutil.which("pvpython")
 XVFB_RUN = shutil.which("xvfb-run")
-#: both runs below are M-formulation runs with H^h != W^h: Vbar_W is written beside the velocity
+#: the runs below are M-formulation runs with H^h != W^h: Vbar_W is written beside the velocity
 FIELDS = ("displacement", "velocity", "Vbar_W", "contact_stress", "active")
 #: CI (.ci/run) installs ParaView and sets SDM_REQUIRE_PARAVIEW=1: there a missing ParaView fails, not skips
 REQUIRED = os.environ.get("SDM_REQUIRE_PARAVIEW", "") not in ("", "0")
@@ -55,14 +56,17 @@ def clean_env():
 
 @pytest.fixture(scope="module")
 def runs():
-    """A membrane run that reaches the obstacle and a disc run that reaches the foundation, on disk."""
+    """A membrane run that reaches the obstacle, a disc run that reaches the foundation and a ball run
+    near its maximal compression (3-D: a z displacement of its own), on disk."""
     path = tempfile.mkdtemp(prefix="sdm_pv_") if COMM.rank == 0 else None
     path = Path(COMM.bcast(path, root=0))
     # membrane: free fall reaches u = 0 at t ~ 0.26
     simulate(membrane.problem(N=6), pair="P1+/P0", dt=1e-2, T=0.4, out=path / "membrane", write_every=5)
     # disc: the lowest point touches at t ~ 9.6 ms (vector field, quadratic geometry)
     simulate(disc.problem(level=1), pair="P2/P1", dt=2.5e-4, T=0.0115, out=path / "disc", write_every=4)
-    yield {"membrane": path / "membrane", "disc": path / "disc"}
+    # ball: touches at t = 0.1 ms, largest force near 2 ms (P2 tetrahedra, curved)
+    simulate(ball.problem(level=1), pair="P2/P1", dt=1e-4, T=2.4e-3, out=path / "ball", write_every=4)
+    yield {"membrane": path / "membrane", "disc": path / "disc", "ball": path / "ball"}
     COMM.Barrier()
     if COMM.rank == 0:
         shutil.rmtree(path, ignore_errors=True)
@@ -93,7 +97,7 @@ def on_rank0(check):
 
 
 # ------------------------------------------------------------------------- without ParaView
-@pytest.mark.parametrize("name", ["membrane", "disc"])
+@pytest.mark.parametrize("name", ["membrane", "disc", "ball"])
 def test_merged_xdmf_holds_every_field_per_time(runs, name):
     def check():
         run = runs[name]
@@ -135,7 +139,7 @@ def test_pictures(runs):
 
 # ---------------------------------------------------------------------------- with ParaView
 @needs_paraview
-@pytest.mark.parametrize("name", ["membrane", "disc"])
+@pytest.mark.parametrize("name", ["membrane", "disc", "ball"])
 def test_paraview_reads_the_output(runs, name):
     """pvpython opens solution.xdmf (Xdmf3ReaderS), steps through time; arrays and ranges match h5py."""
     require(("pvpython", PVPYTHON))
@@ -161,6 +165,27 @@ def test_paraview_reads_the_output(runs, name):
                 assert err <= rtol * scale, (layout, f, err, scale)
         assert s["raw"]["blocks"] == len(FIELDS) and s["merged"]["blocks"] == 1
         assert max(s["merged"]["arrays"]["contact_stress"]["max"]) > 0
+        # a 3-D run moves along z (accepted); a 2-D run's third component is zero (checked by the script)
+        assert s["raw"]["dim"] == (3 if name == "ball" else 2)
+    on_rank0(check)
+
+
+@needs_paraview_and_xvfb
+def test_paraview_renders_the_ball(runs):
+    """paraview_check.py --png renders the ball (3-D) cut by y = 0 at its largest contact stress."""
+    require(("pvpython", PVPYTHON), ("xvfb-run", XVFB_RUN))
+    def check():
+        from PIL import Image
+        run = runs["ball"]
+        png = run / "paraview.png"
+        cmd = [XVFB_RUN, "-a", PVPYTHON, str(ROOT / "scripts" / "paraview_check.py"), str(run), "--png", str(png)]
+        for attempt in range(2):       # a GLX context can fail to come up on a busy shared X server: once more
+            p = subprocess.run(cmd, capture_output=True, text=True, env=clean_env(), timeout=300)
+            if p.returncode == 0:
+                break
+        assert p.returncode == 0, f"paraview_check failed:\n{p.stdout[-2000:]}\n{p.stderr[-2000:]}"
+        img = np.asarray(Image.open(png).convert("RGB"), dtype=float)
+        assert img.shape[:2] == (600, 800) and img.std() > 10
     on_rank0(check)
 
 
