@@ -161,7 +161,10 @@ def plot_wave(out, problem, png):
     p, ex = problem.parameters, closed_form(problem)
     series = read_xdmf(out)
     x, y = series.points[:, 0], series.points[:, 1]
-    mid = np.flatnonzero(np.isclose(y, np.median(np.unique(y))))
+    # the mid-line's height: the median of the distinct heights (rounded: the P2 output's points carry
+    # round-off, e.g. +-1e-16 around 0 with OpenBLAS, which would make duplicates)
+    ys = np.unique(np.round(y, 9))
+    mid = np.flatnonzero(np.isclose(y, ys[len(ys) // 2]))
     mid = mid[np.argsort(x[mid])]
     xs = x[mid]
     xc = 0.5 * (xs[1:] + xs[:-1])
