@@ -4,12 +4,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$(pwd)
-# libopenblas0-serial: Debian's OpenBLAS takes over libblas.so.3 / liblapack.so.3 (update-alternatives,
-# priority 100 over the reference BLAS's 10; a choice set by hand is kept). Measured by
-# bench/blas.py (bench/results/blas.json): set-up 1.7-3.5x and steps 1.1-1.7x faster (MUMPS/CHOLMOD
-# factorisations, disc level 4, ball levels 2-3), results equal to 4e-13. Serial: 2 MPI ranks on 2 cores.
 PKGS="python3-dolfinx python3-petsc4py python3-mpi4py python3-h5py python3-matplotlib python3-pytest
-python3-gmsh python3-scipy python3-venv python3-pip python3-setuptools openmpi-bin libopenblas0-serial"
+python3-gmsh python3-scipy python3-venv python3-pip python3-setuptools openmpi-bin"
 missing=()
 for p in $PKGS; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

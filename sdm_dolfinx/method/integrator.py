@@ -27,6 +27,7 @@ import numpy as np
 from sdm_dolfinx.method import friction as _friction, iterative as _iterative, schemes, step_matrix as _step_matrix
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.solvers import VIError, choose_strategy, make_vi_solver, sparse_factor_matrix
+from sdm_dolfinx.solvers.schur import SCHUR_MAX_ACTIVE_3D
 from sdm_dolfinx.solvers.friction import FrictionalNewton
 from sdm_dolfinx.solvers.friction_cone import FrictionalNewtonCone
 
@@ -129,6 +130,8 @@ class Integrator:
             self.treatment = _contact.make(self.contact, self, dict(contact_options or {}))
             self.solver = self.treatment.solver
         elif self.friction is None:
+            if d.problem.mesh.topology.dim == 3:     # many more active vertices: see solvers.schur
+                options = {"schur_max_active": str(SCHUR_MAX_ACTIVE_3D), **(options or {})}
             self.solver = make_vi_solver(vi_solver, self.K, d.cdofs, self.time_scheme.solver_bounds(self),
                                          symmetric_positive=not self.block, linear=linear, options=options,
                                          factor_matrix=self.factor_matrix)

@@ -95,7 +95,10 @@ class SemismoothNewton:
         if self.linear in ("schur", "cg-factor"):
             self.fac = Factorisation(K, self.spd, self.prefix + "factor_", aug=self.factor_matrix)
         if self.linear == "schur":
-            self.schur = SchurComplement(K, self.cdofs, self.lb, self.fac)
+            # -<prefix>schur_max_active N: the largest active set solved densely (default
+            # SCHUR_MAX_ACTIVE; the integrator asks 1000 in 3-D, see schur.py)
+            fixed = PETSc.Options().getInt(self.prefix + "schur_max_active", 0)
+            self.schur = SchurComplement(K, self.cdofs, self.lb, self.fac, max_active=fixed or None)
         self.inactive = InactiveSetSolver(K, self.cdofs, self.lb, self.spd, self.linear, self.prefix, self.fac)
         self.snes = self._make_snes()
 
