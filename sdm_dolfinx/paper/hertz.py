@@ -36,9 +36,8 @@ t_c is resolved to dt, i.e. +-1 % at dt = 4e-5 s)::
     3       53976    6    2e-5    +1.0 %    +1.45 %     +1.6 %         0.04 %      156 s *
     4      107397    8    4e-5    -0.5 %    +1.9 %      +0.7 %         0.13 %      344 s *, 6.1 GB
 
-(* measured with the dense Schur path allowed up to 1000 active constraints; the step solver
-now measures that threshold once per run (``solvers.schur.SchurComplement.max_active``: 784 at
-level 3). With the former fixed 100 the level-3 contact steps fell back to CG preconditioned
+(* measured with the dense Schur path allowed up to 1000 active constraints, the step
+solver's threshold in 3-D since (``solvers.schur.SCHUR_MAX_ACTIVE_3D``). With the 2-D threshold 100 the level-3 contact steps fell back to CG preconditioned
 by the factorisation, 24 solves per Newton iteration: 754 s for 125 steps of 4e-5 s instead
 of 83 s.) The rebound speed is 0.9999 v at every level.
 
