@@ -4,14 +4,11 @@ a close-up of the contact zone with Hertz's contact radius a and the depth 0.48 
 von Mises stress (0.62 p0 at nu = 0.3). pyvista renders it in a child process
 (:mod:`sdm_dolfinx.paper.pyvista_scene`, kind ``ball``); without it, matplotlib draws the cut's cells.
 Rank 0 only (the states are read with the serial HDF5 reader)."""
-from mpi4py import MPI
-
 import numpy as np
 import ufl
 
-from sdm_dolfinx import compat, post
-from sdm_dolfinx.paper.metrics import Series
-from sdm_dolfinx.paper.pictures import pick_state, render_pyvista
+from sdm_dolfinx import compat
+from sdm_dolfinx.paper.pictures import peak_state, render_pyvista
 from sdm_dolfinx.paper.plotting import pyplot
 from sdm_dolfinx.problems import ball
 
@@ -59,13 +56,7 @@ def axis_profile(vm, centroids, a, radius=0.3, width=0.1, depth=2.0):
 
 def picture_ball(folder, out):
     """The picture of the run in ``folder`` (rank 0); returns its numbers and how it was drawn."""
-    s = Series(folder)
-    info, problem, W, Vs = post.rebuild(folder, MPI.COMM_SELF)
-    reader = post.StateReader(folder, W, Vs, MPI.COMM_SELF)
-    row = pick_state(s, reader, "contact_force")
-    u, _ = reader.read(row)
-    t = float(reader.t[row])
-    force = float(s["contact_force"][int(reader.steps[row])])
+    info, problem, W, u, t, force = peak_state(folder)
     args = info["problem"]["args"]
     prm = problem.parameters
     ref = prm["hertz"]

@@ -61,6 +61,17 @@ def pick_state(series, reader, column, upto=None):
 
 
 # ----------------------------------------------------------------------------- membrane
+def peak_state(folder):
+    """The stored state of largest contact force of the run in ``folder`` (rank 0, COMM_SELF):
+    (info, problem, W, u, t, force)."""
+    s = Series(folder)
+    info, problem, W, Vs = post.rebuild(folder, MPI.COMM_SELF)
+    reader = post.StateReader(folder, W, Vs, MPI.COMM_SELF)
+    row = pick_state(s, reader, "contact_force")
+    u, _ = reader.read(row)
+    return info, problem, W, u, float(reader.t[row]), float(s["contact_force"][int(reader.steps[row])])
+
+
 def picture_membrane(study, runs_dir, out):
     """The membrane on the obstacle during the first impact (paper Fig. 1), rank 0."""
     from dolfinx import fem
@@ -136,13 +147,7 @@ def picture_disc(study, runs_dir, out):
     """The P2/P1 disc at maximal compression, as a plane-strain cylinder (rank 0)."""
     dt = min(study.disc["P2/P1"])
     folder = runs_dir / study.disc["P2/P1"][dt].name
-    s = Series(folder)
-    info, problem, W, Vs = post.rebuild(folder, MPI.COMM_SELF)
-    reader = post.StateReader(folder, W, Vs, MPI.COMM_SELF)
-    row = pick_state(s, reader, "contact_force")
-    u, _ = reader.read(row)
-    t = float(reader.t[row])
-    force = float(s["contact_force"][int(reader.steps[row])])
+    info, problem, W, u, t, force = peak_state(folder)
     args = info["problem"]["args"]
     vm = von_mises_cells(u, args["lame_lambda"], args["lame_mu"])
     title = (f"disc, P2/P1, level 1, dt = {dt:g} s: maximal compression at t = {1e3 * t:.2f} ms "
