@@ -295,7 +295,8 @@ def petsc_overrides(extra):
 
 #: PETSc options of the step solvers checked before anything runs: the solvers' own (VI_OPTIONS)
 #: and SNES's iteration limit (-sdm_snes_max_it -5 made the semi-smooth Newton do no iteration)
-CHECKED_OPTIONS = {**VI_OPTIONS, "snes_max_it": (int, lambda v: v >= 1, "an integer >= 1")}
+CHECKED_OPTIONS = {**VI_OPTIONS, "snes_max_it": (int, lambda v: v >= 1, "an integer >= 1"),
+                   "schur_max_active": (int, lambda v: v >= 1, "an integer >= 1")}
 
 
 #: the parser whose options an unrecognised argument is compared with (set by :func:`parse`)

@@ -98,6 +98,9 @@ class SemismoothNewton:
             # -<prefix>schur_max_active N: the largest active set solved densely (default
             # SCHUR_MAX_ACTIVE; the integrator asks 1000 in 3-D, see schur.py)
             fixed = PETSc.Options().getInt(self.prefix + "schur_max_active", 0)
+            if fixed < 0:
+                raise VIError(f"-{self.prefix}schur_max_active (or -sdm_schur_max_active): {fixed} is not an "
+                              "integer >= 1")
             self.schur = SchurComplement(K, self.cdofs, self.lb, self.fac, max_active=fixed or None)
         self.inactive = InactiveSetSolver(K, self.cdofs, self.lb, self.spd, self.linear, self.prefix, self.fac)
         self.snes = self._make_snes()

@@ -57,6 +57,8 @@ BAD = [
     (["membrane", "-sdm_vi_rtol", "-1"], None, "-sdm_vi_rtol"),
     (["membrane", "-sdm_vi_max_it", "0"], None, "-sdm_vi_max_it"),
     (["membrane", "-sdm_vi_max_it", "many"], None, "-sdm_vi_max_it"),
+    (["membrane", "-sdm_schur_max_active", "0"], None, "-sdm_schur_max_active"),
+    (["ball", "-sdm_schur_max_active", "-3"], None, "-sdm_schur_max_active"),
     (["disc", "--radius", "0"], None, "--radius"),
     (["disc", "--rho", "nan"], None, "--rho"),
     (["disc", "--level", "7"], None, "invalid choice"),
