@@ -223,10 +223,14 @@ def test_xdmf_contact_status_and_tangential_stress(mpi_tmp_path):
         from sdm_dolfinx.post.xdmf import read_xdmf
         s = read_xdmf(out)
         bottom = s.vertex_mask() & np.isclose(s.points[:, 1], 0.0)
-        status = s.field("contact_status", n * dt)[bottom]
+        raw = s.field("contact_status", n * dt)[bottom]
         stress = s.field("tangential_stress", n * dt)[bottom]
+        # The codes pass through the P2 output space: at a vertex they are the code to round-off
+        # (OpenBLAS leaves ~1e-16 in the P2 nodes' coordinates); 1e-9 is far below the gap of 1.
+        status = np.rint(raw)
         res = (sorted(s.fields), int(np.sum(status == 2)), int(np.sum(status == 1)),
-               bool(np.all((stress != 0) == (status > 0))), bool(np.all(np.isin(status, (0.0, 1.0, 2.0)))))
+               bool(np.all((np.abs(stress) > 1e-9 * np.abs(stress).max()) == (status > 0))),
+               bool(np.all(np.isin(status, (0.0, 1.0, 2.0)) & (np.abs(raw - status) < 1e-9))))
     fields, slipping, sticking, where, codes = COMM.bcast(res, root=0)
     assert "contact_status" in fields and "tangential_stress" in fields and codes and where
     assert slipping == r.timeseries["n_slip"][-1] > 0
