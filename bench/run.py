@@ -37,6 +37,7 @@ STRATEGIES = {
     "schur": {"vi_solver": "ssn", "linear": "schur"},
     "cg-factor": {"vi_solver": "ssn", "linear": "cg-factor"},
     "cg-amg": {"vi_solver": "ssn", "linear": "cg-amg"},
+    "cg-gamg": {"vi_solver": "ssn", "linear": "cg-gamg"},
     "amg": {"vi_solver": "ssn", "linear": "amg"},
     "lu": {"vi_solver": "ssn", "linear": "lu"},
     "rsls": {"vi_solver": "vinewtonrsls", "linear": "lu"},
@@ -60,7 +61,14 @@ SUITES = {
     # the 3-D ball (issue 19): 25 steps of flight from 0.1 mm, then 50 of contact up to about the
     # maximal compression (Hertz: t_c = 3.9 ms, so the contact steps are the loaded half)
     "ball": {"problem": "ball", "pair": "P2/P1", "dt": 4e-5, "T": 3e-3, "height": 0.1,
-             "sizes": [1, 2, 3, 4, 5], "max_size": {"lu": 1, "rsls": 1, "amg": 2, "cg-amg": 2, "cg-factor": 2}},
+             "sizes": [1, 2, 3, 4, 5],
+             "max_size": {"lu": 1, "rsls": 1, "amg": 2, "cg-amg": 2, "cg-factor": 2, "cg-gamg": 2}},
+    # the ball where 75 steps would take hours (cg-gamg; auto's choice at level 5 on this machine):
+    # 6 steps from 4 um above the plane, contact from step 2 (up to 25 / 41 / 90 active vertices
+    # at levels 3 / 4 / 5)
+    "ball-window": {"problem": "ball", "pair": "P2/P1", "dt": 4e-5, "T": 2.4e-4, "height": 0.004,
+                    "sizes": [3, 4, 5],
+                    "max_size": {"lu": 1, "rsls": 1, "amg": 2, "cg-amg": 2, "cg-factor": 2, "schur": 4, "auto": 4}},
 }
 
 QUICK = {
@@ -136,7 +144,9 @@ def run_case(spec, comm=None):
         rec.update(dofs=info["dim_W"], dim_H=info["dim_H"], N_g=info["N_g"], setup_time=info["setup_time"],
                    steps=info["steps"])
         rec["max_active"] = int(np.max(result.timeseries["n_active"]))
+        rec["linear_strategy"] = info.get("linear_strategy")      # what auto chose
         del result
+    rec["blas"] = os.path.realpath("/usr/lib/x86_64-linux-gnu/libblas.so.3")
     times, impact = np.array(times), np.array(impact, dtype=bool)
     its, lin = np.array(its, dtype=float), np.array(lin, dtype=float)
     mean = lambda a: float(a.mean()) if a.size else None
@@ -263,7 +273,8 @@ def slope(dofs, times):
 
 
 TITLES = {"membrane": "membrane P1+/P0, dt = 1e-3, 400 steps", "disc": "disc P2/P1, dt = 5e-5, 400 steps",
-          "ball": "ball (3-D) P2/P1, dt = 4e-5, 75 steps"}
+          "ball": "ball (3-D) P2/P1, dt = 4e-5, 75 steps",
+          "ball-window": "ball (3-D) P2/P1, 6 steps from first contact"}
 
 
 def plot(out, png):
@@ -273,9 +284,15 @@ def plot(out, png):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     names = [n for n in TITLES if (out / f"{n}.json").exists()]
-    ball = "ball" in names
-    fig, axes = plt.subplots(1, len(names) + ball, figsize=(6 * (len(names) + ball), 5), squeeze=False)
-    for ax, name in zip(axes[0], names):
+    balls = [n for n in names if n.startswith("ball")]
+    panels = len(names) + bool(balls)
+    cols = min(panels, 3)
+    rows = -(-panels // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(6 * cols, 5 * rows), squeeze=False)
+    axes = list(axes.flat)
+    for ax in axes[panels:]:
+        ax.set_visible(False)
+    for ax, name in zip(axes, names):
         recs = [r for r in json.loads((out / f"{name}.json").read_text())["records"] if r.get("status") == "finished"]
         lines = sorted({(r["strategy"], r["ranks"]) for r in recs})
         for strat, ranks in lines:
@@ -287,13 +304,14 @@ def plot(out, png):
         ax.set_title(TITLES[name])
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
-    if ball:
-        ax = axes[0][-1]
-        recs = [r for r in json.loads((out / "ball.json").read_text())["records"] if r.get("status") == "finished"]
-        for strat, ranks in sorted({(r["strategy"], r["ranks"]) for r in recs}):
-            rs = sorted((r for r in recs if r["strategy"] == strat and r["ranks"] == ranks), key=lambda r: r["dofs"])
-            ax.loglog([r["dofs"] for r in rs], [max(r["peak_rss_mb"]) / 1024 for r in rs],
-                      "o-" if ranks == 1 else "s--", label=f"{strat}, {ranks} rank{'s' if ranks > 1 else ''}")
+    if balls:
+        ax = axes[panels - 1]
+        for name in balls:
+            recs = [r for r in json.loads((out / f"{name}.json").read_text())["records"] if r.get("status") == "finished"]
+            for strat, ranks in sorted({(r["strategy"], r["ranks"]) for r in recs}):
+                rs = sorted((r for r in recs if r["strategy"] == strat and r["ranks"] == ranks), key=lambda r: r["dofs"])
+                ax.loglog([r["dofs"] for r in rs], [max(r["peak_rss_mb"]) / 1024 for r in rs],
+                          "o-" if ranks == 1 else "s--", label=f"{name}: {strat}, {ranks} rank{'s' if ranks > 1 else ''}")
         ax.set_xlabel("dofs (dim W^h)")
         ax.set_ylabel("peak resident memory of the largest rank (GiB)")
         ax.set_title("ball (3-D): memory per rank")

@@ -4,6 +4,7 @@ import importlib.util
 import json
 from pathlib import Path
 
+import numpy as np
 from mpi4py import MPI
 
 COMM = MPI.COMM_WORLD
@@ -43,3 +44,31 @@ def test_quick_benchmark_output(mpi_tmp_path):
             assert r["step_time"] > 0 and r["setup_time"] > 0 and r["newton_per_step"] >= 1
             assert r["linear_per_step"] >= 1 and min(r["peak_rss_mb"]) > 0
     assert (mpi_tmp_path / "time_per_step.png").stat().st_size > 1000
+
+
+def load_project():
+    spec = importlib.util.spec_from_file_location("bench_project", SCRIPT.parent / "project.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_projection_recovers_a_power_law():
+    """bench/project.py on synthetic curves t = a n^s: the fit returns a and s (to 1e-10), the
+    ideal time is t(N)/p, a 2-rank gain g gives t(N)/g^log2(p) (capped at 2: no superlinear
+    projection) and the memory per rank is memory.run_bytes(N)/p plus one process."""
+    from sdm_dolfinx.solvers import memory
+    proj = load_project()
+    ns = [1e4, 3e4, 1e5]
+    cur = {"schur": {1: [(n, 2e-8 * n ** 1.5, 0, 0) for n in ns], 2: [(1e5, 2e-8 * 1e5 ** 1.5 / 1.25, 0, 0)]},
+           "cg-gamg": {1: [(n, 3e-5 * n ** 1.2, 0, 0) for n in ns], 2: [(1e5, 3e-5 * 1e5 ** 1.2 / 2.5, 0, 0)]}}
+    fits, rows = proj.project(cur, 1e7, [4, 64])
+    assert abs(fits["schur"]["s"] - 1.5) < 1e-10 and abs(fits["schur"]["a"] / 2e-8 - 1) < 1e-8
+    assert abs(fits["cg-gamg"]["s"] - 1.2) < 1e-10 and abs(fits["schur"]["two_rank_gain"] - 1.25) < 1e-12
+    for r in rows:
+        a, s, g = (2e-8, 1.5, 1.25) if r["strategy"] == "schur" else (3e-5, 1.2, 2.0)
+        t1 = a * 1e7 ** s
+        assert abs(r["s_ideal"] / (t1 / r["ranks"]) - 1) < 1e-8
+        assert abs(r["s_measured_eff"] / (t1 / g ** np.log2(r["ranks"])) - 1) < 1e-8
+        need = memory.run_bytes(1e7, 3, factorised=r["strategy"] == "schur")
+        assert abs(r["gb_per_rank"] - (need / r["ranks"] + memory.BYTES_PER_PROCESS) / 1e9) < 1e-9
