@@ -5,7 +5,9 @@ Reads ``results/ball.json`` (75-step bounces, ``auto`` = ``schur`` at levels 1-4
 for each strategy on 1 rank, time per contact step = a n^s (least squares in log-log over the
 levels measured); memory per rank comes from :mod:`sdm_dolfinx.solvers.memory`'s fits of the same
 runs' peaks. At ``--dofs`` (default 10 M) it prints, for each strategy and rank count, the
-memory per rank and the time per contact step under two stated assumptions, both projections:
+memory per rank (ideal: the total divided by the ranks; and with memory.SHARED, the share that
+did not halve from 1 to 2 ranks, kept on every rank) and the time per contact step under two
+stated assumptions, both projections:
 
 * ideal: the 1-rank time divided by the ranks;
 * measured efficiency: each doubling of the ranks gains what 1 -> 2 ranks gained at the largest
@@ -73,6 +75,7 @@ def project(cur, dofs, ranks):
         t1 = a * dofs ** s
         for p in ranks:
             rows.append({"strategy": strat, "ranks": p, "gb_per_rank": (total / p + memory.BYTES_PER_PROCESS) / 1e9,
+                         "gb_per_rank_shared": (memory.per_rank(total, p) + memory.BYTES_PER_PROCESS) / 1e9,
                          "s_ideal": t1 / p, "s_measured_eff": t1 / min(gain, 2.0) ** math.log2(p) if gain else None,
                          "rank_s": t1})
     return fits, rows
@@ -93,11 +96,12 @@ def main(argv=None):
         gain = "-" if f["two_rank_gain"] is None else f"{f['two_rank_gain']:.2f}x at {f['at_dofs']} dofs"
         print(f"{strat:8s} t = {f['a']:.3g} n^{f['s']:.2f} s per contact step (1 rank, n = {f['levels']}); "
               f"2 ranks: {gain}")
-    print(f"\n| strategy | ranks | GB per rank | s per contact step, ideal | at the measured 2-rank efficiency |"
-          f"\n|---|---|---|---|---|")
+    print(f"\n| strategy | ranks | GB per rank, ideal | GB per rank, 2-rank share kept | s per contact step, ideal | "
+          f"at the measured 2-rank efficiency |\n|---|---|---|---|---|---|")
     for r in rows:
         eff = "-" if r["s_measured_eff"] is None else f"{r['s_measured_eff']:.3g}"
-        print(f"| {r['strategy']} | {r['ranks']} | {r['gb_per_rank']:.3g} | {r['s_ideal']:.3g} | {eff} |")
+        print(f"| {r['strategy']} | {r['ranks']} | {r['gb_per_rank']:.3g} | {r['gb_per_rank_shared']:.3g} | "
+              f"{r['s_ideal']:.3g} | {eff} |")
     (args.out / "projection.json").write_text(json.dumps({"dofs": args.dofs, "fits": fits, "rows": rows}, indent=1))
     return 0
 

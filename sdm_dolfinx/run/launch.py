@@ -24,7 +24,7 @@ from sdm_dolfinx.run.folder import RunFolderError, check_out, read_info
 from sdm_dolfinx.run.result import num_steps
 from sdm_dolfinx.run.simulate import simulate
 from sdm_dolfinx.solvers import LINEAR_STRATEGIES, VI_SOLVERS
-from sdm_dolfinx.solvers.memory import run_bytes
+from sdm_dolfinx.solvers.memory import per_rank, run_bytes
 
 #: the run options and their defaults where the problem declares none
 RUN_DEFAULTS = {"pair": "P1+/P0", "scheme": "midpoint", "dt": 1e-3, "T": 0.8, "mass": None, "vi_solver": "ssn",
@@ -293,7 +293,9 @@ def estimate_memory(spec, values, pair, options=None, steps=0, ranks=1, inspect=
     disc levels 4-5; inspections 0.75). In 3-D (``counts["dim"]``, or a 3-component u) the
     factorisation's fill grows as n^(4/3): :func:`sdm_dolfinx.solvers.memory.run_bytes`, a fit of
     the ball's measured peak RSS (levels 1-4), of the factorised or the iterative strategy
-    (``auto``: the smaller, as ``auto`` goes iterative when the factorisation does not fit).
+    (``auto``: the smaller, as ``auto`` goes iterative when the factorisation does not fit); on
+    several ranks each holds :func:`~sdm_dolfinx.solvers.memory.per_rank` of it (measured: not half
+    on 2 ranks).
     """
     estimate = getattr(spec, "estimate", None)
     counts = estimate(values) if estimate is not None else None
@@ -315,7 +317,7 @@ def estimate_memory(spec, values, pair, options=None, steps=0, ranks=1, inspect=
             need = min(factorised, run_bytes(dim_w, dim, factorised=False))
         else:
             need = factorised
-        return need + BYTES_PER_PROCESS * ranks + 100.0 * steps, dim_w
+        return per_rank(need, ranks) * ranks + BYTES_PER_PROCESS * ranks + 100.0 * steps, dim_w
     if inspect:
         per_dof = INSPECT_BYTES_PER_DOF
     else:

@@ -55,8 +55,8 @@ def choose_strategy(num_constraints, spd, n=None, dim=2, comm=None, explain=Fals
     need = memory.run_bytes(n, dim) if (spd and n is not None) else None
     if need is not None and name == "schur":
         comm = comm or MPI.COMM_WORLD
-        if n > REDUNDANT_MAX_ROWS:      # distributed: the factor is shared by the ranks
-            need /= comm.size
+        if n > REDUNDANT_MAX_ROWS:      # distributed: the factor is shared by the ranks (not all of the rest)
+            need = memory.per_rank(need, comm.size)
         avail = memory.available_per_rank(comm)
         if avail is not None:
             fits = need <= memory.MEMORY_MARGIN * avail

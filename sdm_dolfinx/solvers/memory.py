@@ -32,6 +32,11 @@ FACTOR_3D = (23100.0, 592.0)
 ITERATIVE_3D = 32000.0
 #: ``auto`` factorises only when the estimate is below this fraction of the memory available per rank
 MEMORY_MARGIN = 0.8
+#: the share of a run's memory that does not divide among the ranks: on 2 ranks the largest held
+#: 0.64-0.71 of the 1-rank peak (less BYTES_PER_PROCESS) with ``schur`` (levels 3-4) and 0.60-0.62
+#: with ``cg-gamg`` (levels 3-5), i.e. a share s of 0.29-0.42 and 0.20-0.24 in s + (1 - s) / 2
+#: (bench/results/ball*.json); the largest, rounded up. Measured at 1 and 2 ranks only.
+SHARED = 0.45
 
 
 def run_bytes(n, dim, factorised=True):
@@ -44,6 +49,12 @@ def run_bytes(n, dim, factorised=True):
         return ITERATIVE_3D * n
     columns = min(8.0 * n * SCHUR_MAX_COLUMNS, SCHUR_COLUMN_MEMORY)
     return FACTOR_3D[0] * n + FACTOR_3D[1] * n ** (4.0 / 3.0) + columns
+
+
+def per_rank(total, ranks):
+    """Bytes on each of ``ranks`` ranks of a distributed run that needs ``total`` on one:
+    SHARED of it on every rank, the rest divided."""
+    return total * (SHARED + (1.0 - SHARED) / ranks)
 
 
 def available_per_rank(comm=MPI.COMM_WORLD):

@@ -72,3 +72,25 @@ def test_projection_recovers_a_power_law():
         assert abs(r["s_measured_eff"] / (t1 / g ** np.log2(r["ranks"])) - 1) < 1e-8
         need = memory.run_bytes(1e7, 3, factorised=r["strategy"] == "schur")
         assert abs(r["gb_per_rank"] - (need / r["ranks"] + memory.BYTES_PER_PROCESS) / 1e9) < 1e-9
+
+
+def test_memory_share_model_covers_the_recorded_two_rank_runs():
+    """solvers.memory.per_rank is conservative against every recorded 3-D pair of runs (same suite,
+    level, strategy on 1 and 2 ranks, above the redundant-factorisation size): the largest rank's
+    peak less one process is at most per_rank(1-rank peak less one process, 2), and more than half
+    of it (the model is not vacuous)."""
+    from sdm_dolfinx.solvers import memory
+    from sdm_dolfinx.solvers.factorisation import REDUNDANT_MAX_ROWS
+    pairs = 0
+    for name in ("ball", "ball-window"):
+        recs = json.loads((SCRIPT.parent / "results" / f"{name}.json").read_text())["records"]
+        one = {(r["size"], r["strategy"]): r for r in recs if r["ranks"] == 1 and r["status"] == "finished"}
+        for r in recs:
+            r1 = one.get((r["size"], r["strategy"]))
+            if r["ranks"] != 2 or r1 is None or r["dofs"] <= REDUNDANT_MAX_ROWS:
+                continue
+            base = memory.BYTES_PER_PROCESS / 2 ** 20
+            got, single = max(r["peak_rss_mb"]) - base, max(r1["peak_rss_mb"]) - base
+            assert single / 2 < got <= memory.per_rank(single, 2), (name, r["size"], r["strategy"], got, single)
+            pairs += 1
+    assert pairs >= 4
