@@ -21,7 +21,7 @@ from sdm_dolfinx.solvers import VIError
 from sdm_dolfinx.method.integrator import Integrator, StepError
 from sdm_dolfinx.mpiutil import atomic_write_text, json_text
 from sdm_dolfinx.run import checkpoint, restart as _restart
-from sdm_dolfinx.run.folder import FolderLock, same_run_as_checked
+from sdm_dolfinx.run.folder import FolderLock, RunFolderError, read_info, same_run_as_checked
 from sdm_dolfinx.run.observers import ConstraintProbe, PointProbe
 from sdm_dolfinx.run.outputs import RunFileError, RunFiles
 from sdm_dolfinx.run.result import Result, TimeSeries, num_steps
@@ -98,9 +98,10 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
     law = _friction.make(friction, mu, tresca_threshold)        # ValueError: options that do not agree
     stop = StopFlag(handle_signals)      # before anything is built or written
     loop = None
+    kept = _kept_choice(out, linear, problem.mesh.comm) if restart else None
     try:
         loop = _Loop(problem, pair, scheme, dt, T, mass, vi_solver, linear, petsc_options, wall0, quadrature_degree,
-                     law, method)
+                     law, method, kept)
         loop.observe = observe
         signum = stop.agreed(loop.comm)
         if signum:
@@ -114,23 +115,41 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
         stop.restore()
 
 
+def _kept_choice(out, linear, comm):
+    """(strategy, reason) of the run in ``out`` when ``linear`` is ``auto``, else None: in 3-D
+    ``auto`` decides by the memory free when the run starts, and a restart on a busier machine must
+    continue on the same path (a different solver differs at round-off, or worse)."""
+    if linear != "auto" or out is None:
+        return None
+    try:
+        info = read_info(out, comm)
+    except RunFolderError:          # the restart itself says what is missing
+        return None
+    chosen = info.get("linear_strategy")
+    if chosen not in ("schur", "amg", "cg-gamg"):
+        return None
+    return chosen, f"auto, kept from the run's start ({info.get('linear_strategy_reason')})"
+
+
 class _Loop:
     """The state of one run between :func:`simulate`'s phases (set-up, files, steps, end)."""
 
     def __init__(self, problem, pair, scheme, dt, T, mass, vi_solver, linear, petsc_options, wall0,
-                 quadrature_degree=None, friction=None, method=None):
+                 quadrature_degree=None, friction=None, method=None, kept=None):
         self.wall0, self.dt, self.comm = wall0, dt, problem.mesh.comm
         method = dict(method or {})
         self.discretisation = d = Discretisation(problem, pair, mass, quadrature_degree,
                                                  constrain=method.get("constrain") or "vertices")
         try:
             self.integ = Integrator(
-                d, scheme, dt, vi_solver, linear, petsc_options, friction,
+                d, scheme, dt, vi_solver, kept[0] if kept else linear, petsc_options, friction,
                 scheme_options={k: method.get(k) for k in ("hht_alpha", "restitution")},
                 contact=method.get("contact") or "exact",
                 contact_options={k: method.get(k) for k in ("penalty", "nitsche_theta", "nitsche_gamma0")})
         except (PETSc.Error, VIError) as e:  # e.g. a -sdm_ option PETSc (or the step solver) does not accept
             raise SolverSetupError(f"PETSc could not set up the step solver: {_petsc_message(e)}") from None
+        if kept:
+            self.integ.linear_reason = kept[1]
         self.nsteps = num_steps(T, dt)
         self.setup_time = time.perf_counter() - wall0
         U, V = d.initial_state()
