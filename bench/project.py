@@ -44,7 +44,7 @@ def records(out):
 
 
 def curves(recs):
-    """strategy -> {ranks: [(dofs, s per contact step, peak MB of the largest rank, Krylov/step)]},
+    """strategy -> {ranks: [(dofs, s per contact step, peak MiB of the largest rank, Krylov/step)]},
     ``schur`` from the bounces (``auto`` chose it) and ``cg-gamg`` from the window."""
     cur = {}
     for suite, r in recs:
@@ -96,8 +96,8 @@ def main(argv=None):
         gain = "-" if f["two_rank_gain"] is None else f"{f['two_rank_gain']:.2f}x at {f['at_dofs']} dofs"
         print(f"{strat:8s} t = {f['a']:.3g} n^{f['s']:.2f} s per contact step (1 rank, n = {f['levels']}); "
               f"2 ranks: {gain}")
-    print(f"\n| strategy | ranks | GB per rank, ideal | GB per rank, 2-rank share kept | s per contact step, ideal | "
-          f"at the measured 2-rank efficiency |\n|---|---|---|---|---|---|")
+    print("\n| strategy | ranks | GB per rank, ideal (total / ranks + one process) | GB per rank, 2-rank share "
+          "kept | s per contact step, ideal | at the measured 2-rank efficiency |\n|---|---|---|---|---|---|")
     for r in rows:
         eff = "-" if r["s_measured_eff"] is None else f"{r['s_measured_eff']:.3g}"
         print(f"| {r['strategy']} | {r['ranks']} | {r['gb_per_rank']:.3g} | {r['gb_per_rank_shared']:.3g} | "

@@ -277,6 +277,22 @@ TITLES = {"membrane": "membrane P1+/P0, dt = 1e-3, 400 steps", "disc": "disc P2/
           "ball-window": "ball (3-D) P2/P1, 6 steps from first contact"}
 
 
+def _lines(out, name):
+    """The finished records of ``out/<name>.json`` as plot lines: (strategy, ranks, records by dofs)."""
+    recs = [r for r in json.loads((out / f"{name}.json").read_text())["records"] if r.get("status") == "finished"]
+    for strat, ranks in sorted({(r["strategy"], r["ranks"]) for r in recs}):
+        yield strat, ranks, sorted((r for r in recs if r["strategy"] == strat and r["ranks"] == ranks),
+                                   key=lambda r: r["dofs"])
+
+
+def _panel(ax, title, ylabel):
+    ax.set_xlabel("dofs (dim W^h)")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+
+
 def plot(out, png):
     """Log-log time per step against dofs, one line per (problem, strategy, ranks); for the ball
     (when recorded) also the peak memory per rank."""
@@ -287,36 +303,23 @@ def plot(out, png):
     balls = [n for n in names if n.startswith("ball")]
     panels = len(names) + bool(balls)
     cols = min(panels, 3)
-    rows = -(-panels // cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(6 * cols, 5 * rows), squeeze=False)
+    fig, axes = plt.subplots(-(-panels // cols), cols, figsize=(6 * cols, 5 * -(-panels // cols)), squeeze=False)
     axes = list(axes.flat)
     for ax in axes[panels:]:
         ax.set_visible(False)
+    ranks_label = lambda ranks: f"{ranks} rank{'s' if ranks > 1 else ''}"       # noqa: E731
     for ax, name in zip(axes, names):
-        recs = [r for r in json.loads((out / f"{name}.json").read_text())["records"] if r.get("status") == "finished"]
-        lines = sorted({(r["strategy"], r["ranks"]) for r in recs})
-        for strat, ranks in lines:
-            rs = sorted((r for r in recs if r["strategy"] == strat and r["ranks"] == ranks), key=lambda r: r["dofs"])
+        for strat, ranks, rs in _lines(out, name):
             ax.loglog([r["dofs"] for r in rs], [r["step_time"] for r in rs], "o-" if ranks == 1 else "s--",
-                      label=f"{strat}, {ranks} rank{'s' if ranks > 1 else ''}")
-        ax.set_xlabel("dofs (dim W^h)")
-        ax.set_ylabel("mean time per step (s)")
-        ax.set_title(TITLES[name])
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7)
+                      label=f"{strat}, {ranks_label(ranks)}")
+        _panel(ax, TITLES[name], "mean time per step (s)")
     if balls:
         ax = axes[panels - 1]
         for name in balls:
-            recs = [r for r in json.loads((out / f"{name}.json").read_text())["records"] if r.get("status") == "finished"]
-            for strat, ranks in sorted({(r["strategy"], r["ranks"]) for r in recs}):
-                rs = sorted((r for r in recs if r["strategy"] == strat and r["ranks"] == ranks), key=lambda r: r["dofs"])
+            for strat, ranks, rs in _lines(out, name):
                 ax.loglog([r["dofs"] for r in rs], [max(r["peak_rss_mb"]) / 1024 for r in rs],
-                          "o-" if ranks == 1 else "s--", label=f"{name}: {strat}, {ranks} rank{'s' if ranks > 1 else ''}")
-        ax.set_xlabel("dofs (dim W^h)")
-        ax.set_ylabel("peak resident memory of the largest rank (GiB)")
-        ax.set_title("ball (3-D): memory per rank")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7)
+                          "o-" if ranks == 1 else "s--", label=f"{name}: {strat}, {ranks_label(ranks)}")
+        _panel(ax, "ball (3-D): memory per rank", "peak resident memory of the largest rank (GiB)")
     fig.tight_layout()
     fig.savefig(png, dpi=120)
     plt.close(fig)

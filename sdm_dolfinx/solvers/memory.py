@@ -5,10 +5,10 @@ contact (``schur``: CHOLMOD of K below 20k rows, of the sparser augmented matrix
 cached columns), bench's run_case, dolfinx 0.5.2 / PETSc 3.18:
 
     level  dim W    schur      cg-gamg
-    1        6594    472 MB     315 MB
-    2       21750    980 MB     752 MB
-    3       53976   2470 MB    1739 MB
-    4      106842   5361 MB    3392 MB   (schur over 125 steps: 6.1 GB, the cached columns)
+    1        6594    472 MiB     315 MiB
+    2       21750    980 MiB     752 MiB
+    3       53976   2470 MiB    1739 MiB
+    4      106842   5361 MiB    3392 MiB   (schur over 125 steps: 6.1 GB, the cached columns)
 
 Nested dissection of a 3-D mesh leaves nnz(L) ~ n^(4/3) (2-D: n log n); a least-squares fit of
 RSS - BYTES_PER_PROCESS = a n + c n^(4/3) over levels 2-4 gives a = 23 100 and c = 592 bytes
