@@ -158,13 +158,9 @@ class Discretisation:
         cinv.reciprocal()
         Bs = self.B.copy()
         Bs.diagonalScale(L=cinv)                  # C^-1 B
-        # B^T C^-1 B through an explicit B^T: PETSc's MatTransposeMatMult keeps per-rank work arrays
-        # as large as M itself on MPI (ball level 3, 2 ranks: +580 MB per rank and 1.8 s against
-        # +360 MB and 0.7 s this way; 1 rank: the same time and memory)
-        Bt = self.B.transpose(PETSc.Mat())       # (no argument: petsc4py transposes B in place)
-        self.M = Bt.matMult(Bs)
-        Bt.destroy()
-        Bs.destroy()
+        Bt = self.B.transpose(PETSc.Mat())    # not in place; not MatTransposeMatMult (its MPI memory: bench/README)
+        self.M = Bt.matMult(Bs)               # B^T C^-1 B
+        Bt.destroy(), Bs.destroy()
 
     def form(self, expr):
         """The compiled form of the UFL ``expr`` at this discretisation's quadrature degree
