@@ -63,7 +63,7 @@ from petsc4py import PETSc
 
 import numpy as np
 
-from sdm_dolfinx.solvers.base import VIError
+from sdm_dolfinx.solvers.base import MurtyRule, VIError
 from sdm_dolfinx.solvers.factorisation import Factorisation
 from sdm_dolfinx.solvers.friction_system import FrictionSystem
 from sdm_dolfinx.solvers.options import instance_prefix, scoped_options, vi_tolerances
@@ -240,8 +240,7 @@ class FrictionalNewton:
         m, (active, stick, sigma) = self.m, self._sets
         partner = np.concatenate([np.zeros(m, dtype=np.int64), np.arange(m)])   # t_i -> n_i
         target = np.concatenate([self.lb, xref])
-        gidx = self.K.getOwnershipRange()[0] + self.ndofs
-        best, patience = np.inf, 3
+        murty = MurtyRule(self.K.getOwnershipRange()[0] + self.ndofs, self.comm)
         max_it = max_it or self.max_it
         for it in range(1, max_it + 1):
             friction = active if s is None else np.ones(m, dtype=bool)
@@ -266,12 +265,8 @@ class FrictionalNewton:
             if n_bad == 0:
                 return {"its": it}
             new = self._predict(xn, lamN, lamT, d, sets, s)
-            if n_bad < best:
-                best, patience = n_bad, 3
-            elif patience > 0:
-                patience -= 1
-            else:
-                one = gidx == self.comm.allreduce(int(np.max(gidx[bad_n | bad_t], initial=-1)), op=MPI.MAX)
+            one = murty.single(n_bad, bad_n | bad_t)
+            if one is not None:
                 normal = one & bad_n
                 tangential = one & ~bad_n | (normal if s is None else False)   # Coulomb: gains friction
                 new = (np.where(normal, new[0], active),) + tuple(np.where(tangential, n, o)

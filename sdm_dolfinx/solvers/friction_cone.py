@@ -38,7 +38,7 @@ from mpi4py import MPI
 
 import numpy as np
 
-from sdm_dolfinx.solvers.base import VIError
+from sdm_dolfinx.solvers.base import MurtyRule, VIError
 from sdm_dolfinx.solvers.friction import FrictionalNewton
 
 
@@ -105,8 +105,7 @@ class FrictionalNewtonCone(FrictionalNewton):
         Murty's rule as in 2-D. Returns ``{"its"}``."""
         m, (active, stick, z) = self.m, self._sets
         lamN, lamT = self.lam, self.lam_t
-        gidx = self.K.getOwnershipRange()[0] + self.ndofs
-        best, patience = np.inf, 3
+        murty = MurtyRule(self.K.getOwnershipRange()[0] + self.ndofs, self.comm)
         max_it = max_it or self.max_it
         for it in range(1, max_it + 1):
             friction = active if s is None else np.ones(m, dtype=bool)
@@ -133,12 +132,8 @@ class FrictionalNewtonCone(FrictionalNewton):
             self._sets = (active, stick, new[2])
             if n_bad == 0:
                 return {"its": it}
-            if n_bad < best:
-                best, patience = n_bad, 3
-            elif patience > 0:
-                patience -= 1
-            else:
-                one = gidx == self.comm.allreduce(int(np.max(gidx[bad_n | bad_t], initial=-1)), op=MPI.MAX)
+            one = murty.single(n_bad, bad_n | bad_t)
+            if one is not None:
                 normal = one & bad_n
                 tangential = one & ~bad_n | (normal if s is None else False)
                 new = (np.where(normal, new[0], active), np.where(tangential, new[1], stick), new[2])

@@ -18,7 +18,7 @@ from petsc4py import PETSc
 import numpy as np
 
 from sdm_dolfinx.solvers.active_set import LINEAR_STRATEGIES, InactiveSetSolver, choose_strategy
-from sdm_dolfinx.solvers.base import VIError
+from sdm_dolfinx.solvers.base import MurtyRule, VIError
 from sdm_dolfinx.solvers.factorisation import Factorisation
 from sdm_dolfinx.solvers.options import instance_prefix, scoped_options, vi_tolerances
 from sdm_dolfinx.solvers.schur import SchurComplement
@@ -177,8 +177,7 @@ class SemismoothNewton:
             self.schur.start(b)
         work = None
         active = self.active.copy()
-        gidx = self.K.getOwnershipRange()[0] + c           # global indices, for Murty's rule
-        best, patience = np.inf, 3
+        murty = MurtyRule(self.K.getOwnershipRange()[0] + c, self.comm)
         for it in range(1, self.max_it + 1):
             # Newton step: x_A = lb_A, K_II x_I = b_I - K_IA lb_A
             by_schur = schur and self.schur.system(active)
@@ -208,14 +207,8 @@ class SemismoothNewton:
                     self.schur.finish(b, x, active)
                 n_active = self.comm.allreduce(int(np.count_nonzero(active)), op=MPI.SUM)
                 return {"its": it, "n_active": n_active}
-            if n_inf < best:
-                best, patience = n_inf, 3
-            elif patience > 0:
-                patience -= 1
-            else:                       # Murty: exchange one constraint only
-                gmax = self.comm.allreduce(int(np.max(gidx[infeasible], initial=-1)), op=MPI.MAX)
-                infeasible = gidx == gmax
-            active = active ^ infeasible
+            one = murty.single(n_inf, infeasible)
+            active = active ^ (infeasible if one is None else one)   # Murty: exchange one constraint only
         raise VIError(f"semi-smooth Newton did not converge in {self.max_it} iterations "
                       f"({n_inf} constraints still infeasible)")
 

@@ -399,3 +399,25 @@ def test_registry(string, monkeypatch, clean_options):
         make_vi_solver("nope", d.K, d.cdofs, d.lb)
     with pytest.raises(ValueError, match="unknown linear strategy"):
         make_vi_solver("ssn", d.K, d.cdofs, d.lb, linear="nope")
+
+
+def test_murty_rule_exchanges_one_condition_after_its_patience():
+    """solvers.base.MurtyRule (the three active-set loops' cycle breaker): no single exchange
+    while the violated count falls or for PATIENCE iterations without a decrease; then the mask
+    of exactly one violated condition over all ranks, the one of largest global index."""
+    from sdm_dolfinx.solvers.base import MurtyRule
+    comm = MPI.COMM_WORLD
+    n = 5
+    gidx = comm.rank * n + np.arange(n)                      # rank-contiguous global indices
+    bad = np.zeros(n, dtype=bool)
+    bad[[0, 2]] = True                                       # on every rank; the largest is the last rank's 2
+    rule = MurtyRule(gidx, comm)
+    for count in (9, 7, 4):                                  # falling: never
+        assert rule.single(count, bad) is None
+    for _ in range(MurtyRule.PATIENCE):                      # not falling: patience
+        assert rule.single(4, bad) is None
+    one = rule.single(4, bad)
+    assert comm.allreduce(int(one.sum()), op=MPI.SUM) == 1
+    assert one[2] == (comm.rank == comm.size - 1) and bad[one].all()
+    assert rule.single(5, bad) is not None                  # still no decrease: single exchanges go on
+    assert rule.single(3, bad) is None                      # a decrease: full updates again
