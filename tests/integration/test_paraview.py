@@ -84,6 +84,19 @@ def h5_reference(run):
         return out, len(h5["Mesh/mesh/geometry"])
 
 
+def render_png(script, args, png):
+    """Run the pvpython ``script`` with ``args`` and ``--png png`` under xvfb-run; the PNG's RGB
+    values. A GLX context can fail to come up on a busy shared X server: tried once more."""
+    from PIL import Image
+    cmd = [XVFB_RUN, "-a", PVPYTHON, str(script)] + list(args) + ["--png", str(png)]
+    for attempt in range(2):
+        p = subprocess.run(cmd, capture_output=True, text=True, env=clean_env(), timeout=300)
+        if p.returncode == 0:
+            break
+    assert p.returncode == 0, f"{Path(script).name} failed:\n{p.stdout[-2000:]}\n{p.stderr[-2000:]}"
+    return np.asarray(Image.open(png).convert("RGB"), dtype=float)
+
+
 def on_rank0(check):
     """Run ``check()`` on rank 0 only; every rank passes or fails with its message."""
     message = None
@@ -175,16 +188,8 @@ def test_paraview_renders_the_ball(runs):
     """paraview_check.py --png renders the ball (3-D) cut by y = 0 at its largest contact stress."""
     require(("pvpython", PVPYTHON), ("xvfb-run", XVFB_RUN))
     def check():
-        from PIL import Image
         run = runs["ball"]
-        png = run / "paraview.png"
-        cmd = [XVFB_RUN, "-a", PVPYTHON, str(ROOT / "scripts" / "paraview_check.py"), str(run), "--png", str(png)]
-        for attempt in range(2):       # a GLX context can fail to come up on a busy shared X server: once more
-            p = subprocess.run(cmd, capture_output=True, text=True, env=clean_env(), timeout=300)
-            if p.returncode == 0:
-                break
-        assert p.returncode == 0, f"paraview_check failed:\n{p.stdout[-2000:]}\n{p.stderr[-2000:]}"
-        img = np.asarray(Image.open(png).convert("RGB"), dtype=float)
+        img = render_png(ROOT / "scripts" / "paraview_check.py", [str(run)], run / "paraview.png")
         assert img.shape[:2] == (600, 800) and img.std() > 10
     on_rank0(check)
 
@@ -194,16 +199,8 @@ def test_paraview_renders_the_membrane_demo(runs):
     """demos/paraview_membrane.py renders the membrane on its obstacle to a PNG under xvfb-run."""
     require(("pvpython", PVPYTHON), ("xvfb-run", XVFB_RUN))
     def check():
-        from PIL import Image
-        png = runs["membrane"].parent / "paraview_membrane.png"
-        cmd = [XVFB_RUN, "-a", PVPYTHON, str(ROOT / "demos" / "paraview_membrane.py"), str(runs["membrane"]),
-               "--png", str(png), "--time", "0.3"]
-        for attempt in range(2):       # a GLX context can fail to come up on a busy shared X server: once more
-            p = subprocess.run(cmd, capture_output=True, text=True, env=clean_env(), timeout=300)
-            if p.returncode == 0:
-                break
-        assert p.returncode == 0, f"pvpython failed:\n{p.stdout[-2000:]}\n{p.stderr[-2000:]}"
-        img = np.asarray(Image.open(png).convert("RGB"), dtype=float)
+        img = render_png(ROOT / "demos" / "paraview_membrane.py", [str(runs["membrane"]), "--time", "0.3"],
+                         runs["membrane"].parent / "paraview_membrane.png")
         assert img.shape[:2] == (650, 900) and img.std() > 10
         # red contact markers are drawn (the membrane touches the obstacle at t = 0.3)
         red = (img[..., 0] > 180) & (img[..., 1] < 80) & (img[..., 2] < 80)
