@@ -224,6 +224,8 @@ def run_suite(name, suite, strategies, ranks_list, out, repeat, short, timeout, 
         for size in suite["sizes"]:
             for strat in strategies:
                 if size > suite["max_size"].get(strat, float("inf")):
+                    log(f"{name:12s} size {size:>4} {strat:10s} ranks {ranks}: skipped (this suite runs it up to "
+                        f"size {suite['max_size'][strat]})")
                     continue
                 spec = {k: suite[k] for k in ("problem", "pair", "dt", "T") if k in suite}
                 if "height" in suite:
@@ -300,6 +302,8 @@ def plot(out, png):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     names = [n for n in TITLES if (out / f"{n}.json").exists()]
+    if not names:
+        return                      # nothing recorded in out (every case skipped)
     balls = [n for n in names if n.startswith("ball")]
     panels = len(names) + bool(balls)
     cols = min(panels, 3)
