@@ -44,15 +44,14 @@ def records(out):
 
 
 def curves(recs):
-    """strategy -> {ranks: [(dofs, s per contact step, peak MiB of the largest rank, Krylov/step)]},
+    """strategy -> {ranks: [(dofs, s per contact step)]},
     ``schur`` from the bounces (``auto`` chose it) and ``cg-gamg`` from the window."""
     cur = {}
     for suite, r in recs:
         strat = r.get("linear_strategy") or ("schur" if r["strategy"] == "auto" else r["strategy"])
         if (strat, suite) not in (("schur", "ball"), ("cg-gamg", "ball-window")):
             continue
-        cur.setdefault(strat, {}).setdefault(r["ranks"], []).append(
-            (r["dofs"], r["step_time_impact"], max(r["peak_rss_mb"]), r.get("linear_per_step_impact")))
+        cur.setdefault(strat, {}).setdefault(r["ranks"], []).append((r["dofs"], r["step_time_impact"]))
     return {s: {p: sorted(v) for p, v in by.items()} for s, by in cur.items()}
 
 
@@ -68,8 +67,9 @@ def project(cur, dofs, ranks):
     fits, rows = {}, []
     for strat, by in sorted(cur.items()):
         a, s = fit(by[1])
-        n2 = max(set(p[0] for p in by[1]) & set(p[0] for p in by.get(2, [])), default=None)
-        gain = (dict((p[0], p[1]) for p in by[1])[n2] / dict((p[0], p[1]) for p in by[2])[n2]) if n2 else None
+        one, two = dict(by[1]), dict(by.get(2, []))
+        n2 = max(one.keys() & two.keys(), default=None)
+        gain = one[n2] / two[n2] if n2 else None
         fits[strat] = {"a": a, "s": s, "levels": [p[0] for p in by[1]], "two_rank_gain": gain, "at_dofs": n2}
         total = memory.run_bytes(dofs, 3, factorised=(strat == "schur"))
         t1 = a * dofs ** s
