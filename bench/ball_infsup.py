@@ -4,7 +4,7 @@ A triangle's P1+ is P1 + the cubic bubble; basix refuses a cubic bubble on a tet
 ("Bubble element on a tetrahedron must have degree at least 4"): the tetrahedron's bubble is
 the quartic lambda_0 lambda_1 lambda_2 lambda_3. P1+ on a tetrahedron is P1 + that bubble (vector,
 3 components: the registered P1+ pairs on tetrahedra, ``compat.BUBBLE_DEGREE``), and measures condition (7)
-with :func:`sdm_dolfinx.post.infsup.inspect` (the ``inspect`` command's numbers) for it with H^h =
+with :func:`sdm_dolfinx.analysis.infsup.inspect` (the ``inspect`` command's numbers) for it with H^h =
 P0 and P1, next to P2/P1, P1/P0 and P2/P2 on the same meshes: the ball at the given levels, and
 (--cube N) the unit cube cut into N^3 x 6 tetrahedra with its bottom face constrained.
 
@@ -26,7 +26,7 @@ away from 0 under refinement; P1/P0 (dim Ker B = 9 on the cubes, 0 on the ball: 
 at most) and P2/P2 (Ker B = {0}) fail, as in 2-D. Energy through the impact (ball level 1,
 midpoint, largest |E - E0|/E0): P1+4/P0 1.2 % at dt = 4e-5 s, 0.14 % at 1e-5 s; P1+4/P1 3.8 %,
 0.24 % (P2/P1: 0.18 %, 0.21 %). The cube n = 6 is not measured: SciPy's ARPACK (``eigsh``, the
-largest eigenvalue of B B^T in post/infsup.py's iterative path) did not converge for P1+4/P0
+largest eigenvalue of B B^T in analysis/infsup.py's iterative path) did not converge for P1+4/P0
 in 9 minutes (38881 iterations; the uniform mesh's clustered spectrum).
 """
 import argparse
@@ -41,7 +41,7 @@ import ufl
 from dolfinx import fem, mesh as dmesh
 
 from sdm_dolfinx.method.pairs import get_pair
-from sdm_dolfinx.post.infsup import inspect
+from sdm_dolfinx.analysis.infsup import inspect
 from sdm_dolfinx.problems import Problem
 from sdm_dolfinx.problems import ball
 

@@ -4,7 +4,7 @@ The disc of the paper (P2/P1, C lumped, midpoint) at levels 1-5 with the Table 2
 each level, dt = 8e-4 / 2^(L-1) s, to T = 0.02 s (25 ... 400 steps), thrown obliquely
 (vx0 = 300 mm/s, v0 = -1000 mm/s: the tangential velocity is 0.3 of the normal one, so
 vertices slip at mu = 0.3 while the contact zone spreads), once with Coulomb friction
-(mu = 0.3, :class:`~sdm_dolfinx.solvers.friction.FrictionalNewton`) and once without
+(mu = 0.3, :class:`~sdm_dolfinx.solvers.friction_newton.FrictionalNewton`) and once without
 (the default ``--linear auto``: ``schur``), on 1 and 2 ranks. Each case runs in a fresh
 process (``mpirun -n 2`` for 2 ranks, the environment of :func:`bench.run.spawn`) and
 records: mesh and set-up time, the *median* time per step in free flight and in contact (a

@@ -1,4 +1,4 @@
-"""Benchmark of the frictional step solver (:mod:`sdm_dolfinx.solvers.friction`).
+"""Benchmark of the frictional step solver (:mod:`sdm_dolfinx.solvers.friction_newton`).
 
 Two measurements on a plane-strain elastic block (P1, E = 1, nu = 0.3, [0, 2] x [0, 1], the
 step matrix K = a2 M + A) pressed onto a shallow bowl and dragged sideways, its bottom
@@ -28,7 +28,7 @@ import numpy as np
 
 from sdm_dolfinx.solvers import SemismoothNewton, VIError
 from sdm_dolfinx.solvers import schur
-from sdm_dolfinx.solvers.friction import FrictionalNewton
+from sdm_dolfinx.solvers.friction_newton import FrictionalNewton
 from sdm_dolfinx.solvers.schur import SCHUR_MAX_ACTIVE
 
 COMM = MPI.COMM_WORLD

@@ -33,8 +33,8 @@ from mpi4py import MPI
 
 import numpy as np
 
-from sdm_dolfinx.paper import hertz
-from sdm_dolfinx.paper.plotting import COLOURS, pyplot, save
+from sdm_dolfinx.validation import hertz
+from sdm_dolfinx.study.plotting import COLOURS, pyplot, save
 
 COMM = MPI.COMM_WORLD
 #: (pair, dt) of the runs (the first also writes its files)
@@ -42,7 +42,7 @@ RUNS = (("P2/P1", 4e-5), ("P2/P1", 1e-5), ("P2/P2", 1e-5))
 
 
 def run_all(level, runs, out):
-    """One :func:`sdm_dolfinx.paper.hertz.run_one` row per (pair, dt), with its energy history."""
+    """One :func:`sdm_dolfinx.validation.hertz.run_one` row per (pair, dt), with its energy history."""
     rows = []
     for k, (pair, dt) in enumerate(runs):
         folder = Path(out) / f"ball_{pair.replace('/', '-')}" if k == 0 else None

@@ -80,7 +80,7 @@ def oblique_impact(mu, out, level=1, dt=1e-4, T=0.017):
 def contact_zones(folder):
     """Rank 0: (times, x positions, status) of the vertices that touch at some stored time,
     read back from the run's solution.xdmf (status: 0 free, 1 stick, 2 slip)."""
-    from sdm_dolfinx.post.xdmf import read_xdmf
+    from sdm_dolfinx.io.xdmf_reader import read_xdmf
     s = read_xdmf(folder)
     verts = np.flatnonzero(s.vertex_mask())
     status = np.array([s.field("contact_status", t)[verts] for t in s.times]).astype(int)

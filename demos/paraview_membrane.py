@@ -33,7 +33,7 @@ DEFAULT_RUN = ROOT / "demos" / "output" / "membrane" / "P1plus-P0_dt0.001"
 
 def merged_xdmf(run):
     """The run's ``solution_paraview.xdmf``, written from ``solution.xdmf`` if missing or older."""
-    spec = importlib.util.spec_from_file_location("sdm_render", ROOT / "sdm_dolfinx" / "post" / "xdmf.py")
+    spec = importlib.util.spec_from_file_location("sdm_render", ROOT / "sdm_dolfinx" / "io" / "xdmf_reader.py")
     render = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(render)
     src = run / "solution.xdmf"

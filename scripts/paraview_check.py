@@ -42,8 +42,8 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def _render_module():
-    """sdm_dolfinx/post/xdmf.py loaded by path (it needs only the standard library at load time)."""
-    spec = importlib.util.spec_from_file_location("sdm_render", ROOT / "sdm_dolfinx" / "post" / "xdmf.py")
+    """sdm_dolfinx/io/xdmf_reader.py loaded by path (it needs only the standard library at load time)."""
+    spec = importlib.util.spec_from_file_location("sdm_render", ROOT / "sdm_dolfinx" / "io" / "xdmf_reader.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod

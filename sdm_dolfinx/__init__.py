@@ -27,7 +27,8 @@ logging.captureWarnings(False)
 from sdm_dolfinx.problems import disc, membrane  # noqa: E402
 from sdm_dolfinx.problems.base import Problem  # noqa: E402
 from sdm_dolfinx.method.discretisation import Discretisation  # noqa: E402
-from sdm_dolfinx.method.integrator import SCHEMES, Integrator, StepError  # noqa: E402
+from sdm_dolfinx.errors import StepError  # noqa: E402
+from sdm_dolfinx.run.integrator import SCHEMES, Integrator  # noqa: E402
 from sdm_dolfinx.method.pairs import MASS_TREATMENTS, PAIRS, Pair, get_pair  # noqa: E402
 from sdm_dolfinx.run import Result, launch, simulate  # noqa: E402
 from sdm_dolfinx.solvers import VIError  # noqa: E402

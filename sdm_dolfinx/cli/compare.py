@@ -1,6 +1,6 @@
 """``python -m sdm_dolfinx compare``: every method of the comparison on one problem, over a grid of
 mesh sizes and time steps, against the exact solution (or the finest well-posed run), with a CSV/JSON
-of the metrics, figures and a ranking (:mod:`sdm_dolfinx.paper.compare`).
+of the metrics, figures and a ranking (:mod:`sdm_dolfinx.compare.comparison`).
 
     python -m sdm_dolfinx compare --problem rod1d --methods all --h 1/20,1/40,1/80 --dt-ratio 0.5
     python -m sdm_dolfinx compare --problem rod1d --quick
@@ -19,8 +19,8 @@ from mpi4py import MPI
 
 from sdm_dolfinx import problems
 from sdm_dolfinx.cli.common import Parser, UsageError, folder_path, parse_or_help, report_usage_error
-from sdm_dolfinx.paper import compare
-from sdm_dolfinx.paper.compare_methods import METHODS, describe
+from sdm_dolfinx.compare import comparison as compare
+from sdm_dolfinx.compare.catalogue import METHODS, describe
 from sdm_dolfinx.run import Interrupted
 
 PROG = "python -m sdm_dolfinx compare"

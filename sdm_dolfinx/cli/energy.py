@@ -14,7 +14,8 @@ import numpy as np
 
 from sdm_dolfinx.cli.common import Parser, UsageError, parse_or_help, report_usage_error, say_error
 from sdm_dolfinx.mpiutil import on_rank0
-from sdm_dolfinx.post import PostprocessError, recompute_energy
+from sdm_dolfinx.post import recompute_energy
+from sdm_dolfinx.io import PostprocessError
 
 PROG = "python -m sdm_dolfinx energy"
 #: the files a run folder must hold

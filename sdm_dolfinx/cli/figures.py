@@ -13,10 +13,10 @@ from mpi4py import MPI
 
 from sdm_dolfinx import compat
 from sdm_dolfinx.cli.common import Parser, UsageError, parse_or_help, report_usage_error
-from sdm_dolfinx.paper import hertz_report
-from sdm_dolfinx.paper.report import make_report
-from sdm_dolfinx.paper.runs import duration, ensure_runs, run_state
-from sdm_dolfinx.paper.study import make_study
+from sdm_dolfinx.report import hertz_entry as hertz_report
+from sdm_dolfinx.report.build import make_report
+from sdm_dolfinx.study.runs import duration, ensure_runs, run_state
+from sdm_dolfinx.report.studies import make_study
 from sdm_dolfinx.problems.disc_mesh import LEVELS
 from sdm_dolfinx.run import Interrupted
 

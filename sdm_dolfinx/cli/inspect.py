@@ -1,5 +1,5 @@
 """``python -m sdm_dolfinx inspect [PROBLEM] [options]``: the inf-sup condition (7) of a problem,
-a pair and a mesh (:mod:`sdm_dolfinx.post.infsup`).
+a pair and a mesh (:mod:`sdm_dolfinx.analysis.infsup`).
 
 The problem is a registered one (the first argument or ``--problem NAME``, default membrane)
 or a user's problem file (``--problem-file FILE``); its options are those it declares, as for
@@ -17,13 +17,13 @@ from sdm_dolfinx import compat, problems
 from sdm_dolfinx.cli.common import (Parser, UsageError, check_writable, nonnegative_float, parse_or_help,
                                     positive_float, positive_int, report_usage_error, say_error)
 from sdm_dolfinx.cli.params import add_param_options, param_values
-from sdm_dolfinx.method import schemes
+from sdm_dolfinx import schemes
 from sdm_dolfinx.method.discretisation import CONSTRAIN
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.method.pairs import PAIRS
 from sdm_dolfinx.mpiutil import atomic_write_text, json_text
-from sdm_dolfinx.post import DENSE_MAX, SWEEP_HEADER, TOL, InspectError, inspect, plot_sweep, report, sweep, sweep_line
-from sdm_dolfinx.post.friction_bound import bound_line, coulomb_bound
+from sdm_dolfinx.analysis import DENSE_MAX, SWEEP_HEADER, TOL, InspectError, inspect, plot_sweep, report, sweep, sweep_line
+from sdm_dolfinx.analysis.coulomb_bound import bound_line, coulomb_bound
 from sdm_dolfinx.problems import ProblemInputError
 from sdm_dolfinx.problems.disc_mesh import MeshError
 from sdm_dolfinx.run import RunInputError

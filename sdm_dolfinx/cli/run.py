@@ -18,13 +18,15 @@ from sdm_dolfinx.cli.common import (Parser, UsageError, folder_path, nonnegative
                                     say_error)
 from sdm_dolfinx.cli.config import load_config, read_toml
 from sdm_dolfinx.cli.params import add_param_options, param_values
-from sdm_dolfinx.method import friction, quadrature, schemes
-from sdm_dolfinx.method.integrator import StepError
+from sdm_dolfinx.method import quadrature
+from sdm_dolfinx.contact import friction
+from sdm_dolfinx import schemes
+from sdm_dolfinx.errors import StepError
 from sdm_dolfinx.method.pairs import MASS_TREATMENTS, PAIRS
 from sdm_dolfinx.problems import ProblemInputError, get, load_file, spec_of_run
 from sdm_dolfinx.problems.disc_mesh import MeshError
-from sdm_dolfinx.run import (CheckpointError, Interrupted, RunFolderError, RunInputError, SolverSetupError, plan,
-                             read_info)
+from sdm_dolfinx.run import Interrupted, RunInputError, SolverSetupError, plan
+from sdm_dolfinx.io import CheckpointError, RunFolderError, read_info
 from sdm_dolfinx.run.launch import CONSTRAIN, CONTACTS
 from sdm_dolfinx.solvers import LINEAR_STRATEGIES, VI_OPTIONS, VI_SOLVERS
 

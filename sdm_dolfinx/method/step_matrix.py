@@ -3,7 +3,7 @@ matrix, and its Dirichlet elimination (identity rows and columns, lifting z = K 
 
 For the paper's schemes c_M = alpha^2 and c_A = 1 (alpha = 2/dt midpoint, 1/dt backward
 Euler); Newmark's family has c_M = 1/(beta dt^2) and c_A = 1 + alpha_HHT; an explicit scheme
-c_A = 0 (:mod:`sdm_dolfinx.method.schemes`).
+c_A = 0 (:mod:`sdm_dolfinx.schemes`).
 """
 from petsc4py import PETSc
 

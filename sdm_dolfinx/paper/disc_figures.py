@@ -9,10 +9,11 @@ import numpy as np
 
 from sdm_dolfinx import post, problems
 from sdm_dolfinx.method.discretisation import Discretisation
-from sdm_dolfinx.paper.metrics import Series, jsonable, l1_diff, listing, pct, verdict
-from sdm_dolfinx.paper.plotting import COLOURS, cells_p2, plot_three, pyplot, save
-from sdm_dolfinx.paper.runs import read_run_info
-from sdm_dolfinx.paper.study import PAPER_RATE, PAPER_TABLE2
+from sdm_dolfinx.study.series import Series, l1_diff
+from sdm_dolfinx.study.text import jsonable, listing, pct, verdict
+from sdm_dolfinx.study.plotting import COLOURS, cells_p2, plot_three, pyplot, save
+from sdm_dolfinx.study.runs import read_run_info
+from sdm_dolfinx.paper.design import PAPER_RATE, PAPER_TABLE2
 from sdm_dolfinx.problems.disc_mesh import LEVELS, PAPER_DOFS
 
 

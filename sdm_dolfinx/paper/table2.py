@@ -4,7 +4,7 @@ The paper's program (GetFEM's ``contrib/mixed_dynamic_friction/mixed_dynamic_fri
 removed from GetFEM in 2015; read at commit 4fd4d557, with its ``.param`` and ``.m`` files):
 
 * runs ``t = 0; while (t <= T) { step; t += dt; }`` in double precision
-  (:func:`~sdm_dolfinx.paper.study.getfem_steps`): rows 1-4 end one step past T = 0.02 s
+  (:func:`~sdm_dolfinx.paper.design.getfem_steps`): rows 1-4 end one step past T = 0.02 s
   (26, 51, 101, 201 steps: t = 0.0208, 0.0204, 0.0202, 0.0201 s), rows 5 and 6 exactly at
   0.02 s (400 and 800 steps);
 * saves its last ``U0`` and, with ``COMPARE = 1``, interpolates it onto the mesh of the
@@ -33,9 +33,10 @@ import time
 
 from dolfinx import fem
 
+from sdm_dolfinx import io as sdm_io
 from sdm_dolfinx import post
-from sdm_dolfinx.paper.metrics import COMM, fit_rates
-from sdm_dolfinx.paper.study import PAPER_MESHES, PAPER_T, PAPER_TABLE2, getfem_steps
+from sdm_dolfinx.paper.numbers import COMM, fit_rates
+from sdm_dolfinx.paper.design import PAPER_MESHES, PAPER_T, PAPER_TABLE2, getfem_steps
 from sdm_dolfinx.problems.disc_mesh import LEVELS
 from sdm_dolfinx.run import num_steps
 
@@ -67,7 +68,7 @@ class _Reference:
         self.run, self.folder = run, folder
         self.info, problem, self.W, Vs = post.rebuild(folder, comm)
         self.height = float(problem.parameters["height"])
-        reader = post.StateReader(folder, self.W, Vs, comm)
+        reader = sdm_io.StateReader(folder, self.W, Vs, comm)
         n02, npaper, _ = steps_of(run)
         self.u = {k: reader.read(reader.index_of_step(n))[0] for k, n in (("t002", n02), ("paper", npaper))}
         self.steps = {"t002": n02, "paper": npaper}
@@ -82,10 +83,10 @@ def _differences(ref, run, folder, padding, comm):
     """The coarse run's fields interpolated on the reference mesh, minus the reference's: H¹
     norms of the differences at t = 0.02 (norm, seminorm, lengths in m) and at the paper's steps."""
     info, _, W, Vs = post.rebuild(folder, comm)
-    rd = post.StateReader(folder, W, Vs, comm)
+    rd = sdm_io.StateReader(folder, W, Vs, comm)
     n02, npaper, last = steps_of(run)
     if int(rd.steps[-1]) != last or int(info["steps"]) != last:
-        raise post.PostprocessError(f"{folder}: its last stored state is not its last step {last}")
+        raise sdm_io.PostprocessError(f"{folder}: its last stored state is not its last step {last}")
     out = {}
     for key, n in (("t002", n02), ("paper", npaper)):
         u_c, _ = rd.read(rd.index_of_step(n))

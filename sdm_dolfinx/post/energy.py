@@ -19,7 +19,7 @@ from sdm_dolfinx import compat
 from sdm_dolfinx.method import quadrature
 from sdm_dolfinx.method.discretisation import Discretisation
 from sdm_dolfinx.mpiutil import atomic_write_text
-from sdm_dolfinx.post.read import StateReader, read_info, read_timeseries
+from sdm_dolfinx.io import StateReader, read_info, read_timeseries
 from sdm_dolfinx.post.rebuild_run import rebuild_problem
 
 #: the columns of energy_recomputed.csv

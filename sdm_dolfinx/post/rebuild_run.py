@@ -10,7 +10,7 @@ from mpi4py import MPI
 
 from sdm_dolfinx import compat
 from sdm_dolfinx.method.pairs import get_pair
-from sdm_dolfinx.post.read import PostprocessError, read_info
+from sdm_dolfinx.io import PostprocessError, read_info
 from sdm_dolfinx.problems import ProblemInputError, rebuild as _rebuild_declared
 
 

@@ -8,16 +8,16 @@ works the same for runs made with the command line or the Python API, on any num
 deformed elastic body coloured by its von Mises stress, with pyvista off-screen when it is
 installed (``pip install pyvista imageio``; its VTK wheel renders through EGL/OSMesa without a
 display) and with matplotlib otherwise (:mod:`.render_mpl`). Reading the files and the
-ParaView-friendly XDMF are in :mod:`.xdmf`; their names are available here as well
+ParaView-friendly XDMF are in :mod:`sdm_dolfinx.io.xdmf_reader`; their names are available here as well
 (``render.read_xdmf``, ``render.merge_xdmf``, ...).
 
 The command is ``python -m sdm_dolfinx render RUN_DIR [--png F] [--gif F] [--time T]
 [--merge]`` (:mod:`sdm_dolfinx.cli.render`); running this file is only the pyvista child
 process (see :func:`_in_child`).
 
-This module, :mod:`.xdmf` and :mod:`.render_mpl` import only the standard library at load time
+This module, :mod:`sdm_dolfinx.io.xdmf_reader` and :mod:`.render_mpl` import only the standard library at load time
 (numpy, h5py, pyvista and matplotlib inside the functions), so a ParaView ``pvpython`` script
-can load this file by path; it then loads its two siblings by path too.
+can load this file by path; it then loads those two by path too.
 """
 import json
 import os
@@ -26,10 +26,12 @@ import sys
 from pathlib import Path
 
 
-def _load_sibling(name):
-    """The module ``name``.py next to this file, loaded by path (no package import: see above)."""
+def _load_sibling(relative):
+    """The module at ``relative`` (a path from this file's folder), loaded by path (no package
+    import: see above)."""
     import importlib.util
-    spec = importlib.util.spec_from_file_location(f"sdm_render_{name}", Path(__file__).with_name(f"{name}.py"))
+    path = Path(__file__).resolve().parent / relative
+    spec = importlib.util.spec_from_file_location(f"sdm_render_{path.stem}", path)
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module
     spec.loader.exec_module(module)
@@ -37,9 +39,10 @@ def _load_sibling(name):
 
 
 if __package__:            # imported as sdm_dolfinx.post.render
-    from sdm_dolfinx.post import render_mpl, xdmf
+    from sdm_dolfinx.post import render_mpl
+    from sdm_dolfinx.io import xdmf_reader as xdmf
 else:                      # loaded by path (pvpython, the pyvista child process)
-    xdmf, render_mpl = _load_sibling("xdmf"), _load_sibling("render_mpl")
+    xdmf, render_mpl = _load_sibling("../io/xdmf_reader.py"), _load_sibling("render_mpl.py")
 
 # the names demos, tests and the paper use as render.<name>
 Series, read_xdmf, merge_xdmf, merged_path, von_mises = (xdmf.Series, xdmf.read_xdmf, xdmf.merge_xdmf,

@@ -2,7 +2,7 @@
 disc's curved P2 mesh over its foundation (the paper's Fig. 13, the demos).
 
 Imports nothing of the package and only the standard library at load time (numpy and
-matplotlib inside the functions): the fallbacks take a :class:`~sdm_dolfinx.post.xdmf.Series`.
+matplotlib inside the functions): the fallbacks take a :class:`~sdm_dolfinx.io.xdmf_reader.Series`.
 """
 
 

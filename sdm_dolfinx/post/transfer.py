@@ -11,7 +11,7 @@ import numpy as np
 from dolfinx import geometry
 
 from sdm_dolfinx import compat
-from sdm_dolfinx.post.read import PostprocessError
+from sdm_dolfinx.io.reader import PostprocessError
 
 
 def _owned_cells(msh):

@@ -4,7 +4,7 @@ Linear elasticity (Young's modulus E, Poisson's ratio nu), density rho, a ball o
 whose lowest point A starts --height above the plane with the downward speed v; gravity g
 along -e_z is off by default (--gravity 9810 for the Earth's); --vt (mm/s, along --vt-angle
 degrees from x in the plane) adds a tangential velocity for an oblique impact, with Coulomb
-friction (--friction coulomb --mu 0.3; sdm_dolfinx.paper.ball_oblique). Unilateral contact
+friction (--friction coulomb --mu 0.3; sdm_dolfinx.validation.ball_oblique). Unilateral contact
 z + u_z >= 0 at the boundary vertices of the lower hemisphere (as the disc's y + u_y >= 0 in
 2-D), frictionless by default. Curved P2 tetrahedra refined toward A (ball_mesh). Units: mm,
 N, s, tonne as for the disc (stresses in N/mm^2 = MPa, densities in t/mm^3, forces in N,
@@ -40,7 +40,7 @@ delta' = v sqrt(1 - s^(5/2)), and the contact (approach and symmetric release) l
 The rebound speed is v (no energy is lost quasi-statically). At maximal compression
 a = sqrt(R delta_max) and the peak pressure is p0 = 3 F_max / (2 pi a^2) (the integral of
 p over the disc is 2/3 pi a^2 p0). The dynamic correction (the ball's own inertia: its slowest
-vibration period is not negligible against t_c) is measured by sdm_dolfinx.paper.hertz: at the
+vibration period is not negligible against t_c) is measured by sdm_dolfinx.validation.hertz: at the
 defaults about +3 % on F_max and -2 % on t_c and delta_max against the same mesh at v = 1 mm/s.
 """
 import math

@@ -17,10 +17,12 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from sdm_dolfinx.method import friction, quadrature, schemes
+from sdm_dolfinx.method import quadrature
+from sdm_dolfinx.contact import friction
+from sdm_dolfinx import schemes
 from sdm_dolfinx.method.pairs import get_pair
 from sdm_dolfinx.problems import ProblemInputError, resolve, spec_of_run
-from sdm_dolfinx.run.folder import RunFolderError, check_out, read_info
+from sdm_dolfinx.io.folder import RunFolderError, check_out, read_info
 from sdm_dolfinx.run.result import num_steps
 from sdm_dolfinx.run.simulate import simulate
 from sdm_dolfinx.solvers import LINEAR_STRATEGIES, VI_SOLVERS
@@ -34,7 +36,7 @@ RUN_DEFAULTS = {"pair": "P1+/P0", "scheme": "midpoint", "dt": 1e-3, "T": 0.8, "m
                 "restitution": None}
 #: where the constraint K^h acts (:class:`~sdm_dolfinx.method.discretisation.Discretisation`)
 CONSTRAIN = ("vertices", "nodes")
-#: the contact treatments (:mod:`sdm_dolfinx.method.contact`)
+#: the contact treatments (:mod:`sdm_dolfinx.contact`)
 CONTACTS = ("exact", "penalty", "nitsche")
 #: method parameters: (the option that uses them, its value, the check, what it must be)
 METHOD_PARAMETERS = {

@@ -11,9 +11,9 @@ relative), and the files stay consistent because they do not depend on the parti
 import uuid
 from pathlib import Path
 
-from sdm_dolfinx.run import checkpoint
-from sdm_dolfinx.run.checkpoint import CheckpointError
-from sdm_dolfinx.run.outputs import agree
+from sdm_dolfinx.io import checkpoint
+from sdm_dolfinx.io.checkpoint import CheckpointError
+from sdm_dolfinx.io.run_files import agree
 
 #: what must be the same for a checkpoint to continue a run
 IDENTITY_KEYS = ("problem", "pair", "mass", "scheme", "dt", "vi_solver", "linear", "ranks")

@@ -6,8 +6,7 @@ from mpi4py import MPI
 
 import numpy as np
 
-from sdm_dolfinx.method.integrator import StepError
-
+from sdm_dolfinx.errors import StepError
 #: the columns of every run's time series; a Problem adds its ``extra_columns``
 BASE_COLUMNS = ("step", "t", "energy", "kinetic", "potential", "u_probe", "lambda_probe", "n_active",
                 "newton_its")
@@ -64,7 +63,7 @@ class TimeSeries:
     def record(self, n, t, U, V, lam, its, n_active, step=None):
         """Compute row ``n`` (time ``t``) from the state and the step solver's ``step`` info (None
         for row 0); returns it as a dict (with ``linear_its_total``, the cumulative linear
-        iterations, for observers)."""
+        iterations, for callbacks)."""
         integ, comm = self.integ, self.comm
         kin, pot = integ.energies(U, V, t)
         stored = integ.contact_energy(U) if CONTACT_ENERGY in self.columns else 0.0

@@ -2,7 +2,7 @@
 
 :func:`simulate` is the loop; the pieces it drives live beside it: the integrator (one
 step), :class:`~sdm_dolfinx.run.result.TimeSeries` (one row per step),
-:class:`~sdm_dolfinx.run.outputs.RunFiles` (the folder), :mod:`.restart` (checkpoints) and
+:class:`~sdm_dolfinx.io.run_files.RunFiles` (the folder), :mod:`.restart` (checkpoints) and
 :mod:`.signals` (stopping cleanly).
 """
 import time
@@ -15,15 +15,17 @@ from petsc4py import PETSc
 import numpy as np
 
 from sdm_dolfinx import compat
-from sdm_dolfinx.method import friction as _friction
+from sdm_dolfinx.contact import friction as _friction
 from sdm_dolfinx.method.discretisation import Discretisation
 from sdm_dolfinx.solvers import VIError
-from sdm_dolfinx.method.integrator import Integrator, StepError
+from sdm_dolfinx.errors import StepError
+from sdm_dolfinx.run.integrator import Integrator
 from sdm_dolfinx.mpiutil import atomic_write_text, json_text
-from sdm_dolfinx.run import checkpoint, restart as _restart
-from sdm_dolfinx.run.folder import FolderLock, RunFolderError, read_info, same_run_as_checked
-from sdm_dolfinx.run.observers import ConstraintProbe, PointProbe
-from sdm_dolfinx.run.outputs import RunFileError, RunFiles
+from sdm_dolfinx.run import restart as _restart
+from sdm_dolfinx.io import checkpoint
+from sdm_dolfinx.io.folder import FolderLock, RunFolderError, read_info, same_run_as_checked
+from sdm_dolfinx.run.probes import ConstraintProbe, PointProbe
+from sdm_dolfinx.io.run_files import RunFileError, RunFiles
 from sdm_dolfinx.run.result import Result, TimeSeries, num_steps
 from sdm_dolfinx.run.signals import Interrupted, StopFlag
 from sdm_dolfinx.run.solver_state import SolverHistory
@@ -44,7 +46,7 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
     Args:
         problem: a :class:`sdm_dolfinx.problems.Problem`.
         pair: pair name (see :data:`sdm_dolfinx.method.pairs.PAIRS`).
-        scheme: a registered time scheme (:mod:`sdm_dolfinx.method.schemes`).
+        scheme: a registered time scheme (:mod:`sdm_dolfinx.schemes`).
         dt, T: time step and final time.
         mass: C treatment (``None``: the pair's default).
         quadrature_degree: quadrature degree of every form (None: UFL's exact estimate on affine
@@ -52,7 +54,7 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
             :mod:`sdm_dolfinx.method.quadrature`; the degree used is run.json's ``quadrature_degree``.
         friction, mu, tresca_threshold: friction at the constrained vertices: ``None``/``"none"``,
             ``"tresca"`` (``tresca_threshold``: a stress, times each vertex's lumped boundary
-            measure) or ``"coulomb"`` (coefficient ``mu``), see :mod:`sdm_dolfinx.method.friction`.
+            measure) or ``"coulomb"`` (coefficient ``mu``), see :mod:`sdm_dolfinx.contact.friction`.
         constrain, contact, penalty, nitsche_theta, nitsche_gamma0, hht_alpha, restitution: the
             method options of docs/methods.md (where K^h acts, the contact treatment, the schemes'
             parameters; None: their defaults).
@@ -71,7 +73,7 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
             a stop (as a signal would).
         observe: ``f(n, t, U, V, integ)``, on every rank after row n (n = 0 too) of the time series:
             the state to read (not change), for what the time series does not hold (field errors).
-        folder_seen: ``{"run_id": ...}`` that :func:`sdm_dolfinx.run.folder.check_out` saw in
+        folder_seen: ``{"run_id": ...}`` that :func:`sdm_dolfinx.io.folder.check_out` saw in
             ``out`` (None: no check); checked again once the folder is locked.
         constraint_tol: a constrained iterate below its bound by more than this (relative
             to the largest |bound|, or absolute when the bounds are 0) stops the run.
@@ -81,7 +83,7 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
 
     Raises:
         StepError: a step failed (the outputs up to the last good step stay readable);
-            :class:`~sdm_dolfinx.run.outputs.RunFileError` (a StepError) when a file could not
+            :class:`~sdm_dolfinx.io.run_files.RunFileError` (a StepError) when a file could not
             be written (no space left, a file deleted or replaced during the run).
         Interrupted: a stop was requested; a checkpoint was written first.
         checkpoint.CheckpointError: ``restart`` without a matching checkpoint.

@@ -2,7 +2,7 @@
 
 At each contact vertex i there is a normal dof and two tangential ones; the tangential
 reaction lam_T,i is a 2-vector and d_i = x_t,i - xref_i the 2-vector slip of the step (the
-conventions of :mod:`sdm_dolfinx.solvers.friction`, r = K x - b the obstacle's reaction):
+conventions of :mod:`sdm_dolfinx.solvers.friction_newton`, r = K x - b the obstacle's reaction):
 
     |lam_T| <= g,   |lam_T| < g  =>  d = 0,   d != 0  =>  lam_T = -g d / |d|
 
@@ -23,9 +23,9 @@ run, as in 2-D. c_t = k_t (the mean diagonal of K at the tangential dofs) by def
 
 At convergence (the 2-D tests with |.|: stick |lam_T| <= g + tol; a slip vertex with
 |d| > tol / k_t has |lam_T + g d / |d|| <= tol) lam_T . d = -g |d| <= 0 to the tolerance at
-every vertex, so :mod:`sdm_dolfinx.method.friction`'s energy argument holds as in 2-D.
+every vertex, so :mod:`sdm_dolfinx.contact.friction`'s energy argument holds as in 2-D.
 
-Measured (``tests/physics/test_ball_friction.py``, :mod:`sdm_dolfinx.paper.ball_oblique`: the
+Measured (``tests/physics/test_ball_friction.py``, :mod:`sdm_dolfinx.validation.ball_oblique`: the
 ball at level 1, v = vt = 100 mm/s, mu = 0.02 .. 1, 125 steps, ~20 vertices in contact at the peak; and
 an elastic box sticking or sliding): 2.3-3.2 iterations per contact step on average, at most 6;
 no failure. Two simpler iterations failed on the same ball (mu = 0.3) and were dropped: a fixed
@@ -39,7 +39,7 @@ from mpi4py import MPI
 import numpy as np
 
 from sdm_dolfinx.solvers.base import MurtyRule, VIError
-from sdm_dolfinx.solvers.friction import FrictionalNewton
+from sdm_dolfinx.solvers.friction_newton import FrictionalNewton
 
 
 #: the default tangential Alart–Curnier parameter c_t, times the mean diagonal of K at the

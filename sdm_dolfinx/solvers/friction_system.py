@@ -2,7 +2,7 @@
 solved by a small dense system on cached columns of K^-1 (the ``schur`` idea of
 :mod:`sdm_dolfinx.solvers.schur`, extended to prescribed and coupled reactions).
 
-A Newton iteration of :class:`~sdm_dolfinx.solvers.friction.FrictionalNewton` fixes, on the
+A Newton iteration of :class:`~sdm_dolfinx.solvers.friction_newton.FrictionalNewton` fixes, on the
 2m contact dofs (m normal, then m tangential ones), three kinds of conditions:
 
 * a *fixed* dof j has a prescribed value x_j = target_j (active normal: lb; stick

@@ -1,6 +1,6 @@
 """The penalty step solver: K x = b + P^T lam(x_c),  lam_i = k_i (lb_i - x_{c_i})_+.
 
-With the contact replaced by a penalty (:mod:`sdm_dolfinx.method.contact.penalty`), each step
+With the contact replaced by a penalty (:mod:`sdm_dolfinx.contact.penalty`), each step
 of every scheme is this nonlinear system: K the constant step matrix (Dirichlet rows are
 identity rows), c the constrained dofs, lb their bounds, k > 0 the penalty stiffnesses. With
 x0 = K^-1 b and Z = K^-1 P^T, x = x0 + Z lam: only x_c matters, x_c = x0_c + S lam with

@@ -7,7 +7,7 @@ from mpi4py import MPI
 import pytest
 
 from sdm_dolfinx import cli
-from sdm_dolfinx.paper.compare_methods import CATALOGUE
+from sdm_dolfinx.compare.catalogue import CATALOGUE
 
 COMM = MPI.COMM_WORLD
 PROG = "python -m sdm_dolfinx compare: error:"

@@ -10,7 +10,7 @@ from mpi4py import MPI
 import pytest
 
 from sdm_dolfinx import cli
-from sdm_dolfinx.post import TOL
+from sdm_dolfinx.analysis import TOL
 
 COMM = MPI.COMM_WORLD
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from sdm_dolfinx import PAIRS, SCHEMES, Pair, membrane, simulate
-from sdm_dolfinx.method.schemes import get as get_scheme
+from sdm_dolfinx.schemes import get as get_scheme
 
 COMM = MPI.COMM_WORLD
 ROOT = Path(__file__).resolve().parents[2]

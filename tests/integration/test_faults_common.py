@@ -72,7 +72,7 @@ def column_scale(a, csv):
 def assert_same_run(ref, run, atol=0.0):
     """``run`` holds the same files as ``ref``: timeseries.csv, solution.xdmf's XML and every
     field at every time, every row of state.h5. ``atol`` 0: bit for bit (the CSV as text)."""
-    from sdm_dolfinx.post.xdmf import read_xdmf
+    from sdm_dolfinx.io.xdmf_reader import read_xdmf
     import h5py
     a = np.loadtxt(ref / "timeseries.csv", delimiter=",", skiprows=1, ndmin=2)
     b = np.loadtxt(run / "timeseries.csv", delimiter=",", skiprows=1, ndmin=2)

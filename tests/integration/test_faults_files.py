@@ -16,9 +16,10 @@ import numpy as np
 import pytest
 
 from sdm_dolfinx import cli, membrane, simulate
-from sdm_dolfinx.run import CheckpointError, Interrupted, RunInputError, plan
-from sdm_dolfinx.run.folder import FolderInUseError, FolderLock
-from sdm_dolfinx.run.outputs import RunFileError
+from sdm_dolfinx.run import Interrupted, RunInputError, plan
+from sdm_dolfinx.io import CheckpointError
+from sdm_dolfinx.io.folder import FolderInUseError, FolderLock
+from sdm_dolfinx.io.run_files import RunFileError
 from test_faults_common import (assert_same_run, error_lines, info, rows, run, small_disc,  # noqa: F401 (fixture)
                                 start)
 
@@ -85,7 +86,7 @@ def test_restart_of_a_running_run_is_refused_and_the_run_goes_on(tmp_path):
     assert p.returncode == 128 + signal.SIGTERM, err
     i = info(out)
     assert i["status"] == "interrupted" and rows(out) == i["interrupted_at_step"] + 1
-    from sdm_dolfinx.run.checkpoint import readable_h5
+    from sdm_dolfinx.io.checkpoint import readable_h5
     assert readable_h5(out / "solution.h5") and readable_h5(out / "state.h5")
     assert cli.main(["energy", str(out)]) == 0          # state.h5 agrees with the time series
 
@@ -124,8 +125,8 @@ def test_full_disc_fails_in_one_line_and_restarts_once_there_is_space(small_disc
     assert "HDF5" not in r.stderr and "Traceback" not in r.stderr
     i = info(out)
     assert i["status"] == "failed" and "no space left" in i["error"] and i["last_good_step"] > 7
-    from sdm_dolfinx.post.xdmf import read_xdmf
-    from sdm_dolfinx.run.checkpoint import readable_h5
+    from sdm_dolfinx.io.xdmf_reader import read_xdmf
+    from sdm_dolfinx.io.checkpoint import readable_h5
     assert readable_h5(out / "solution.h5") and readable_h5(out / "state.h5") and len(read_xdmf(out).times) > 7
     assert len((out / "timeseries.csv").read_text().splitlines()) == i["last_good_step"] + 2
     again = run(["membrane", "--restart", out, "--quiet"])                 # still full: the same one line
@@ -159,8 +160,8 @@ def test_a_file_deleted_during_the_run_stops_it_in_one_line(mpi_tmp_path, name):
     last = {"timeseries.csv": 12, "solution.h5": 14, "state.h5": 14, "solution.xdmf": 15}[name]
     assert i["last_good_step"] == last
     if COMM.rank == 0:
-        from sdm_dolfinx.post.xdmf import read_xdmf
-        from sdm_dolfinx.run.checkpoint import readable_h5
+        from sdm_dolfinx.io.xdmf_reader import read_xdmf
+        from sdm_dolfinx.io.checkpoint import readable_h5
         if name != "timeseries.csv":
             assert len((out / "timeseries.csv").read_text().splitlines()) == last + 2
         if name not in ("solution.xdmf", "solution.h5"):
@@ -238,7 +239,7 @@ def test_restart_without_a_field_file_continues_in_a_new_one(mpi_tmp_path, name)
     r = simulate(membrane.problem(N=6), out=out, restart=True, checkpoint_every=7, **KW)
     assert r.info["status"] == "finished"
     if COMM.rank == 0:
-        from sdm_dolfinx.post.xdmf import read_xdmf
+        from sdm_dolfinx.io.xdmf_reader import read_xdmf
         import h5py
         times = read_xdmf(out).times
         assert np.isclose(times[-1], 0.1)
@@ -301,7 +302,7 @@ def _signal_during(monkeypatch, where):
 
 def test_sigint_during_set_up_stops_before_anything_is_written(mpi_tmp_path, monkeypatch):
     out = mpi_tmp_path / "run"
-    _signal_during(monkeypatch, "sdm_dolfinx.method.integrator.Integrator.initial_velocity")
+    _signal_during(monkeypatch, "sdm_dolfinx.run.integrator.Integrator.initial_velocity")
     with pytest.raises(Interrupted, match="before anything was written") as e:
         simulate(membrane.problem(N=6), out=out, handle_signals=True, **KW)
     assert e.value.signum == signal.SIGINT
@@ -314,7 +315,7 @@ def test_sigint_while_the_files_are_created_leaves_a_restartable_run(mpi_tmp_pat
     out = mpi_tmp_path / "run"
     simulate(membrane.problem(N=6), out=mpi_tmp_path / "ref", **KW)
     with monkeypatch.context() as m:
-        _signal_during(m, "sdm_dolfinx.run.observers.XDMFWriter.write")
+        _signal_during(m, "sdm_dolfinx.io.xdmf_writer.XDMFWriter.write")
         with pytest.raises(Interrupted, match="after step 0"):
             simulate(membrane.problem(N=6), out=out, handle_signals=True, **KW)
     assert read_json(out / "run.json")["status"] == "interrupted"
@@ -326,7 +327,7 @@ def test_sigint_while_the_files_are_created_leaves_a_restartable_run(mpi_tmp_pat
 def test_undo_log_ignores_a_torn_entry(tmp_path):
     """The undo log reader drops a torn last entry (a kill while appending it: the write it
     protects never happened)."""
-    from sdm_dolfinx.run import journal
+    from sdm_dolfinx.io import journal
     f = tmp_path / "x.h5"
     f.write_bytes(b"A" * 100)
     jf = journal.JournaledFile(f, committed=100, token="t" * 32)
@@ -346,7 +347,8 @@ def test_a_run_started_between_the_check_and_the_lock_is_not_overwritten(mpi_tmp
     """The folder is checked (plan) before the run locks it (simulate): a run that took the
     folder in between (here: the first plan, run to its end) must not be overwritten by the
     second, which is refused in one line naming the other run."""
-    from sdm_dolfinx.run import RunFolderError, plan, read_info
+    from sdm_dolfinx.run import plan
+    from sdm_dolfinx.io import RunFolderError, read_info
     out = mpi_tmp_path / "raced"
     first = plan("membrane", {"N": 4}, out=out, dt=0.01, T=0.02)
     second = plan("membrane", {"N": 4}, out=out, dt=0.01, T=0.02)

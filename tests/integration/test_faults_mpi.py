@@ -22,7 +22,7 @@ pytestmark = [pytest.mark.mpi, pytest.mark.skipif(COMM.size > 1, reason="starts 
 
 def _check_consistent(out):
     """state.h5 and solution.xdmf agree with timeseries.csv at every stored step."""
-    from sdm_dolfinx.post.xdmf import read_xdmf
+    from sdm_dolfinx.io.xdmf_reader import read_xdmf
     ts = np.genfromtxt(out / "timeseries.csv", delimiter=",", names=True)
     r = run(["energy", out])
     assert r.returncode == 0, r.stderr

@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from sdm_dolfinx import cli
-from sdm_dolfinx.paper import metrics, runs as study_runs, study
+from sdm_dolfinx.paper import numbers as metrics
+from sdm_dolfinx.study import runs as study_runs
+from sdm_dolfinx.paper import design as study
 
 COMM = MPI.COMM_WORLD
 
@@ -92,7 +94,7 @@ def _check_friction(figs, page):
 def test_oscillation_fit_recovers_the_line():
     """v = a t + c + A sin(w t + phi) sampled over about one period gives a, the period and A back
     to 1e-6 relative (w minimises a sum of squares: found to about sqrt(eps))."""
-    from sdm_dolfinx.paper.friction import oscillation_fit
+    from sdm_dolfinx.validation.friction_rigid import oscillation_fit
     t = np.linspace(0.0, 0.01, 201)
     v = 3270.0 * t + 0.3 + 2.4 * np.sin(2 * np.pi * t / 9.9e-3 + 0.4)
     a, period, amp, rms = oscillation_fit(t, v)
@@ -102,7 +104,7 @@ def test_oscillation_fit_recovers_the_line():
 
 def test_slip_places_of_a_hand_made_zone():
     """Four vertices along x: the edges slip, one forward (sigma_T < 0) and one backward."""
-    from sdm_dolfinx.paper.friction_impact import _slip_places
+    from sdm_dolfinx.validation.friction_impact import _slip_places
     frames = {"status": np.array([[0, 1, 1, 0], [2, 1, 1, 2]]), "x": np.array([[0.0, 1.0, 2.0, 3.0]] * 2),
               "tangential": np.array([[0.0, -1.0, -1.0, 0.0], [-0.5, -1.0, 1.0, 0.5]])}
     assert _slip_places(frames) == {"slip_at_edge_fraction": 1.0, "slip_backward_fraction": 0.5}
@@ -111,14 +113,15 @@ def test_slip_places_of_a_hand_made_zone():
 def test_friction_runs_of_the_study():
     """The quick study's friction runs are level 1; the full one's incline runs halve dt with h;
     Tresca's threshold gives the Coulomb stop: s L = mu m g."""
-    from sdm_dolfinx.paper import friction_study as fsm
+    from sdm_dolfinx.validation import friction_study as fsm
     quick, full = fsm.friction_runs(True), fsm.friction_runs(False)
     assert {r.params.get("level", 1) for r in quick.runs()} == {1}
     dts = {lev: r.options["dt"] for lev, r in full.incline["rolling"].items()}
     assert dts == {1: 1e-4, 2: 5e-5, 3: 2.5e-5}
     p = fsm.BLOCK_PARAMS
     assert abs(fsm.block_threshold() * p["width"] - 0.3 * p["rho"] * p["width"] * p["height"] * p["gravity"]) < 1e-12
-    assert set(r.name for r in quick.runs()) <= set(r.name for r in study.make_study(quick=True).runs())
+    from sdm_dolfinx.report.studies import make_study
+    assert set(r.name for r in quick.runs()) <= set(r.name for r in make_study(quick=True).runs())
 
 
 def test_fitted_rate_of_synthetic_errors():

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from sdm_dolfinx import cli, membrane, simulate
-from sdm_dolfinx.run import CheckpointError
+from sdm_dolfinx.io import CheckpointError
 
 COMM = MPI.COMM_WORLD
 

@@ -12,7 +12,7 @@ from mpi4py import MPI
 import numpy as np
 import pytest
 
-from sdm_dolfinx.paper import hertz_report
+from sdm_dolfinx.report import hertz_entry as hertz_report
 from sdm_dolfinx.problems import ball
 
 COMM = MPI.COMM_WORLD
@@ -102,7 +102,7 @@ def test_picture_of_the_finest_run(study, monkeypatch):
     monkeypatch.setenv("SDM_NO_PYVISTA", "1")
     path = study[3]
     if COMM.rank == 0:
-        from sdm_dolfinx.paper import ball_pictures
+        from sdm_dolfinx.validation import ball_pictures
         p = ball_pictures.picture_ball(path / hertz_report.run_name(*RUN[0]), path)
         assert (path / p["png"]).stat().st_size > 10_000 and p["renderer"] == "matplotlib"
         assert p["contact_force"] > 0.5 * p["p0"] * math.pi * p["a"] ** 2

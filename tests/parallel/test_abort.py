@@ -18,7 +18,7 @@ def test_exception_on_one_rank_aborts_every_rank(tmp_path):
     down at once: one line naming the rank, a non-zero status, no hang."""
     script = tmp_path / "inject.py"
     script.write_text(
-        "import sys\nfrom mpi4py import MPI\nfrom sdm_dolfinx import cli\nfrom sdm_dolfinx.run import observers as output\n"
+        "import sys\nfrom mpi4py import MPI\nfrom sdm_dolfinx import cli\nfrom sdm_dolfinx.run import probes as output\n"
         "orig, n = output.PointProbe.__call__, [0]\n"
         "def bad(self, U):\n    n[0] += 1\n"
         "    if MPI.COMM_WORLD.rank == 1 and n[0] == 6:\n        raise RuntimeError('injected on rank 1')\n"

@@ -6,8 +6,8 @@ from mpi4py import MPI
 
 import pytest
 
-from sdm_dolfinx.paper import compare
-from sdm_dolfinx.post.compare_metrics import METRICS
+from sdm_dolfinx.compare import comparison as compare
+from sdm_dolfinx.post.metrics import METRICS
 
 COMM = MPI.COMM_WORLD
 pytestmark = pytest.mark.mpi

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from sdm_dolfinx.method.discretisation import Discretisation
-from sdm_dolfinx.method.integrator import Integrator
+from sdm_dolfinx.run.integrator import Integrator
 from sdm_dolfinx.problems import membrane
 
 COMM = MPI.COMM_WORLD

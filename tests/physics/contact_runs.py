@@ -5,7 +5,7 @@ from mpi4py import MPI
 import numpy as np
 
 from sdm_dolfinx.method.discretisation import Discretisation
-from sdm_dolfinx.method.integrator import Integrator
+from sdm_dolfinx.run.integrator import Integrator
 
 
 class Run:

@@ -9,8 +9,8 @@ import pytest
 
 from sdm_dolfinx import simulate
 from sdm_dolfinx.method.discretisation import Discretisation
-from sdm_dolfinx.method.integrator import Integrator
-from sdm_dolfinx.paper import hertz as hertz_study
+from sdm_dolfinx.run.integrator import Integrator
+from sdm_dolfinx.validation import hertz as hertz_study
 from sdm_dolfinx.problems import ball
 
 COMM = MPI.COMM_WORLD

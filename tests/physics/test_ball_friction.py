@@ -23,8 +23,8 @@ import dolfinx.fem.petsc  # noqa: F401  (fem.petsc.LinearProblem)
 from dolfinx import fem, mesh as dmesh
 
 from sdm_dolfinx.method.discretisation import Discretisation
-from sdm_dolfinx.method.friction import make
-from sdm_dolfinx.method.integrator import Integrator
+from sdm_dolfinx.contact.friction import make
+from sdm_dolfinx.run.integrator import Integrator
 from sdm_dolfinx.problems import ball
 from sdm_dolfinx.problems import base as _problem
 
@@ -268,7 +268,7 @@ def test_rigid_estimates_meet_at_the_slip_roll_threshold():
     """paper.ball_oblique.rigid_estimates: at mu* = 2 v_t / (7 (1 + e) v) gross slip ends exactly in
     rolling (v_t' = 5/7 v_t, omega = 5 v_t / (7 R), to round-off), below it slip, above it roll;
     and the rigid sphere's contact point stops: v_t' - R omega = 0 in the roll regime."""
-    from sdm_dolfinx.paper.ball_oblique import rigid_estimates
+    from sdm_dolfinx.validation.ball_oblique import rigid_estimates
     v, vt, R = 100.0, 100.0, 20.0
     e = rigid_estimates(v, vt, 0.1, R)
     mu_star = e["mu_star"]

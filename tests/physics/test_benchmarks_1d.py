@@ -81,7 +81,7 @@ def test_interval_xdmf(mpi_tmp_path, pair, topology, nodes):
     simulate(p, pair=pair, scheme="midpoint", dt=dt, T=0.1, out=out, write_every=5)   # before the impact
     if COMM.rank != 0:
         return
-    from sdm_dolfinx.post.xdmf import read_xdmf
+    from sdm_dolfinx.io.xdmf_reader import read_xdmf
     text = (out / "solution.xdmf").read_text()
     assert f'TopologyType="{topology}"' in text and 'GeometryType="XY"' in text
     s = read_xdmf(out)

@@ -16,8 +16,8 @@ from mpi4py import MPI
 
 import pytest
 
-from sdm_dolfinx.paper import compare
-from sdm_dolfinx.paper.compare_table import fit_rate
+from sdm_dolfinx.compare import comparison as compare
+from sdm_dolfinx.compare.table import fit_rate
 
 COMM = MPI.COMM_WORLD
 HS = [1 / 20, 1 / 40, 1 / 80, 1 / 160]

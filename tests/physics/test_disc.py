@@ -8,7 +8,7 @@ from sdm_dolfinx import disc, simulate
 from sdm_dolfinx.cli import main as cli_main
 from sdm_dolfinx.problems import disc_mesh
 from sdm_dolfinx.method.discretisation import Discretisation
-from sdm_dolfinx.method.integrator import Integrator
+from sdm_dolfinx.run.integrator import Integrator
 
 COMM = MPI.COMM_WORLD
 

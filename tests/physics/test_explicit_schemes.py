@@ -1,4 +1,4 @@
-"""The explicit schemes (method/schemes/explicit.py): central differences, Paoli-Schatzman,
+"""The explicit schemes (schemes/explicit.py): central differences, Paoli-Schatzman,
 Taylor-Flanagan, and the CFL bound they are refused beyond.
 
 Facts tested, each against an independent route: the measured CFL bound equals the closed-form
@@ -18,12 +18,12 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from sdm_dolfinx.method.contact import penalty as _penalty
+from sdm_dolfinx.contact import penalty as _penalty
 from sdm_dolfinx.method.discretisation import Discretisation
 from sdm_dolfinx.method.errors import DiscretisationError
-from sdm_dolfinx.method.friction import Friction
-from sdm_dolfinx.method.integrator import Integrator
-from sdm_dolfinx.method.schemes import explicit
+from sdm_dolfinx.contact.friction import Friction
+from sdm_dolfinx.run.integrator import Integrator
+from sdm_dolfinx.schemes import explicit
 from sdm_dolfinx.problems import membrane, rod1d
 
 COMM = MPI.COMM_WORLD

@@ -4,7 +4,7 @@ plane-strain block sliding on the foundation y = 0 (1 and 2 ranks).
 * the discrete Coulomb cone |lam_T,i| <= mu lam_N,i (Tresca: <= s m_i) at every vertex, stick
   vertices without slip, slip vertices with a full-size lam_T opposing their slip;
 * the horizontal momentum balance P^{n+1} - P^n = dt (F_x + sum lam_T) exactly (the midpoint
-  scheme with a rigid e_x: eT A = 0, see method/friction.py);
+  scheme with a rigid e_x: eT A = 0, see contact/friction.py);
 * energy: E^{n+1} - E^n = lam . (U^{n+1} - U^n) (midpoint), whose tangential part is the
   friction work <= 0: with the bottom resting on the foundation the normal part vanishes and
   E + dissipated is conserved to round-off;
@@ -20,8 +20,8 @@ from dolfinx import fem, mesh as dmesh
 
 from sdm_dolfinx.method.discretisation import Discretisation
 from sdm_dolfinx.method.errors import DiscretisationError
-from sdm_dolfinx.method.friction import make
-from sdm_dolfinx.method.integrator import Integrator
+from sdm_dolfinx.contact.friction import make
+from sdm_dolfinx.run.integrator import Integrator
 from sdm_dolfinx.problems import Problem
 from sdm_dolfinx.run import simulate
 
@@ -220,7 +220,7 @@ def test_xdmf_contact_status_and_tangential_stress(mpi_tmp_path):
     r = simulate(resting_block(), pair="P2/P1", dt=dt, T=n * dt, friction="coulomb", mu=0.3, out=out, write_every=n)
     res = None
     if COMM.rank == 0:
-        from sdm_dolfinx.post.xdmf import read_xdmf
+        from sdm_dolfinx.io.xdmf_reader import read_xdmf
         s = read_xdmf(out)
         bottom = s.vertex_mask() & np.isclose(s.points[:, 1], 0.0)
         raw = s.field("contact_status", n * dt)[bottom]

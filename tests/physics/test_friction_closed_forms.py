@@ -26,8 +26,8 @@ from dolfinx import fem
 from sdm_dolfinx import compat, disc, simulate
 from sdm_dolfinx.cli import main as cli_main
 from sdm_dolfinx.method.discretisation import Discretisation
-from sdm_dolfinx.method.friction import make
-from sdm_dolfinx.method.integrator import Integrator
+from sdm_dolfinx.contact.friction import make
+from sdm_dolfinx.run.integrator import Integrator
 from sdm_dolfinx.problems import ProblemInputError, block
 
 COMM = MPI.COMM_WORLD

@@ -9,8 +9,9 @@ import scipy.sparse as sp
 import ufl
 from dolfinx import mesh as dmesh
 
+from sdm_dolfinx import analysis
 from sdm_dolfinx import compat, post
-from sdm_dolfinx.post import TOL, inspect, measure
+from sdm_dolfinx.analysis import TOL, inspect, measure
 from sdm_dolfinx.problems import Problem, membrane
 
 COMM = MPI.COMM_WORLD
@@ -220,6 +221,6 @@ def test_rank_deficient_beyond_the_dense_path_is_an_error():
     B = sp.csr_matrix([[1.0, 1.0, 0.0], [1.0, 1.0, 0.0]])
     r = measure(B, sp.identity(2, format="csr"), [2])
     assert (r["rank_B"], r["dim_ker_B"], r["beta"]) == (1, 2, 1.0)     # dense: e_3 lies in Ker(B)
-    with pytest.raises(post.InspectError, match="rank deficient"):
+    with pytest.raises(analysis.InspectError, match="rank deficient"):
         measure(B, sp.identity(2, format="csr"), [2], dense_max=0)
 

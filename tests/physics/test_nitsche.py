@@ -1,4 +1,4 @@
-"""Nitsche's contact term (method/contact/nitsche.py) through ``Integrator(contact="nitsche")``.
+"""Nitsche's contact term (contact/nitsche.py) through ``Integrator(contact="nitsche")``.
 
 The facts tested, each with its tolerance:
 
@@ -26,11 +26,11 @@ import ufl
 from dolfinx import fem
 
 from contact_runs import Run
-from sdm_dolfinx.method import contact
-from sdm_dolfinx.method.contact import nitsche as _nitsche
+from sdm_dolfinx import contact
+from sdm_dolfinx.contact import nitsche as _nitsche
 from sdm_dolfinx.method.discretisation import Discretisation
 from sdm_dolfinx.method.errors import DiscretisationError
-from sdm_dolfinx.method.integrator import Integrator
+from sdm_dolfinx.run.integrator import Integrator
 from sdm_dolfinx.problems import block, membrane, rod1d
 from test_penalty import ranks_series
 

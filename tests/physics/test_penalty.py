@@ -1,4 +1,4 @@
-"""The penalised contact (method/contact/penalty.py) through ``Integrator(contact="penalty")``.
+"""The penalised contact (contact/penalty.py) through ``Integrator(contact="penalty")``.
 
 The facts tested, each with its tolerance:
 
@@ -21,8 +21,8 @@ import numpy as np
 import pytest
 
 from contact_runs import Run
-from sdm_dolfinx.method import contact
-from sdm_dolfinx.method.contact import penalty as _penalty
+from sdm_dolfinx import contact
+from sdm_dolfinx.contact import penalty as _penalty
 from sdm_dolfinx.problems import block, membrane, rod1d
 
 COMM = MPI.COMM_WORLD

@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 from dolfinx import fem, mesh as dmesh
 
+from sdm_dolfinx import io as sdm_io
 from sdm_dolfinx import cli, compat, post, simulate
 from sdm_dolfinx.problems import disc, membrane
-from sdm_dolfinx.run.observers import PointProbe
+from sdm_dolfinx.run.probes import PointProbe
 
 COMM = MPI.COMM_WORLD
 
@@ -66,7 +67,7 @@ def test_point_far_outside_is_refused():
     src = dmesh.create_unit_square(COMM, 3, 3)
     u = fem.Function(compat.function_space(src, compat.element("Lagrange", "triangle", 1)))
     pts = np.array([[2.0, 2.0, 0.0]]) if COMM.rank == 0 else np.zeros((0, 3))
-    with pytest.raises(post.PostprocessError, match="farther"):
+    with pytest.raises(sdm_io.PostprocessError, match="farther"):
         post.evaluate_nonmatching(u, pts, padding=1e-3)
 
 
@@ -116,9 +117,9 @@ def test_state_written_on_one_rank_is_read_on_all(mpi_tmp_path):
         simulate(membrane.problem(MPI.COMM_SELF, N=5), pair="P2/P1", dt=0.02, T=0.4, out=out, write_every=4)
     COMM.Barrier()
     info, problem, W, Vs = post.rebuild(out, COMM)
-    reader = post.StateReader(out, W, Vs, COMM)
+    reader = sdm_io.StateReader(out, W, Vs, COMM)
     u, _ = reader.read(len(reader) - 1)
-    ts = post.read_timeseries(out, COMM)
+    ts = sdm_io.read_timeseries(out, COMM)
     # the probe value at the centre from the reloaded field equals the run's own record
     probe = PointProbe(W, (0.5, 0.5))
     assert probe(compat.petsc_vec(u)) == pytest.approx(ts["u_probe"][-1], abs=1e-6 * 0.02)

@@ -9,7 +9,7 @@ import pytest
 
 from sdm_dolfinx import disc, membrane, simulate
 from sdm_dolfinx.method.discretisation import Discretisation
-from sdm_dolfinx.method.integrator import Integrator
+from sdm_dolfinx.run.integrator import Integrator
 from sdm_dolfinx.solvers import VIError, active_set, augmented, factorisation, schur
 
 COMM = MPI.COMM_WORLD

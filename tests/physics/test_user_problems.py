@@ -25,7 +25,7 @@ from dolfinx import fem, mesh as dmesh
 from sdm_dolfinx import compat
 from sdm_dolfinx.method.discretisation import Discretisation
 from sdm_dolfinx.method.errors import DiscretisationError
-from sdm_dolfinx.method.integrator import StepError
+from sdm_dolfinx.errors import StepError
 from sdm_dolfinx.problems import Problem, ProblemInputError, membrane
 from sdm_dolfinx.run import simulate
 
@@ -188,9 +188,9 @@ def test_step_load_on_a_clamped_block_converges_to_the_semi_discrete_solution():
 
 
 def test_scheme_without_load_time_refuses_a_time_dependent_load():
-    from sdm_dolfinx.method import schemes
-    from sdm_dolfinx.method.integrator import Integrator
-    from sdm_dolfinx.method.schemes.midpoint import Midpoint
+    from sdm_dolfinx import schemes
+    from sdm_dolfinx.run.integrator import Integrator
+    from sdm_dolfinx.schemes.midpoint import Midpoint
 
     class Anonymous(Midpoint):
         name, load_theta = "anonymous-midpoint", None

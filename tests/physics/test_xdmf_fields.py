@@ -32,7 +32,7 @@ def _read(out):
     """(Series, its last time) on rank 0; None elsewhere (h5py is serial)."""
     if COMM.rank != 0:
         return None
-    from sdm_dolfinx.post.xdmf import read_xdmf
+    from sdm_dolfinx.io.xdmf_reader import read_xdmf
     s = read_xdmf(out)
     return s
 

@@ -1,4 +1,4 @@
-"""Checkpoints (run/checkpoint.py): a state saved and restored is the same state, whatever the
+"""Checkpoints (io/checkpoint.py): a state saved and restored is the same state, whatever the
 partition; mesh fingerprints; truncation of the time series; one-line errors.
 
 The checkpoint stores values with their dof coordinates, so a state saved on 2 ranks must
@@ -16,7 +16,7 @@ from dolfinx import fem, mesh as dmesh
 
 from sdm_dolfinx import compat
 from sdm_dolfinx.method.pairs import get_pair
-from sdm_dolfinx.run import checkpoint as ck
+from sdm_dolfinx.io import checkpoint as ck
 
 COMM = MPI.COMM_WORLD
 N = 4

@@ -4,10 +4,10 @@ paper it follows; ``--methods`` selects by name; the mesh size maps onto each pr
 import pytest
 
 from sdm_dolfinx import problems
-from sdm_dolfinx.method import schemes
+from sdm_dolfinx import schemes
 from sdm_dolfinx.method.pairs import PAIRS
-from sdm_dolfinx.paper import compare
-from sdm_dolfinx.paper.compare_methods import CATALOGUE, METHOD_OPTIONS, METHODS, select
+from sdm_dolfinx.compare import comparison as compare
+from sdm_dolfinx.compare.catalogue import CATALOGUE, METHOD_OPTIONS, METHODS, select
 from sdm_dolfinx.run import RUN_DEFAULTS
 from sdm_dolfinx.run.launch import CONSTRAIN, CONTACTS
 

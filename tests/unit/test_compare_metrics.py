@@ -1,4 +1,4 @@
-"""The comparison's metrics (sdm_dolfinx.post.compare_metrics) and its tables (paper.compare_table),
+"""The comparison's metrics (sdm_dolfinx.post.metrics) and its tables (paper.compare_table),
 each on a case whose answer is known in closed form: synthetic time series, and exact solutions
 interpolated on meshes (zero error where the metric compares with the interpolant, the
 interpolation error at its known rate where it compares with a finer one)."""
@@ -12,8 +12,8 @@ import pytest
 from dolfinx import fem, mesh as dmesh
 
 from sdm_dolfinx import compat
-from sdm_dolfinx.paper import compare_table as ct
-from sdm_dolfinx.post import compare_metrics as cm
+from sdm_dolfinx.compare import table as ct
+from sdm_dolfinx.post import metrics as cm
 
 COMM = MPI.COMM_WORLD
 

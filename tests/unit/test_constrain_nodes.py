@@ -22,10 +22,10 @@ from dolfinx import mesh as dmesh
 
 from sdm_dolfinx.method.discretisation import Discretisation
 from sdm_dolfinx.method.errors import DiscretisationError
-from sdm_dolfinx.method.integrator import Integrator
+from sdm_dolfinx.run.integrator import Integrator
 from sdm_dolfinx.mpiutil import gather_rows
-from sdm_dolfinx.post import inspect, report
-from sdm_dolfinx.post.infsup import TOL
+from sdm_dolfinx.analysis import inspect, report
+from sdm_dolfinx.analysis.infsup import TOL
 from sdm_dolfinx.problems import Problem, block
 
 COMM = MPI.COMM_WORLD

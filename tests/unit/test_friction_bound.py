@@ -1,4 +1,4 @@
-"""``inspect --coulomb-bound`` (post/friction_bound.py): the compliance at the contact dofs
+"""``inspect --coulomb-bound`` (analysis/coulomb_bound.py): the compliance at the contact dofs
 against a dense inverse of the step matrix, the bound against the eigenvalues it is defined by,
 1 vs 2 ranks, and the command line."""
 from mpi4py import MPI
@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from sdm_dolfinx.method.discretisation import Discretisation
-from sdm_dolfinx.method.friction import Friction
-from sdm_dolfinx.method.integrator import Integrator
-from sdm_dolfinx.post.friction_bound import compliance, coulomb_bound, mu_critical
+from sdm_dolfinx.contact.friction import Friction
+from sdm_dolfinx.run.integrator import Integrator
+from sdm_dolfinx.analysis.coulomb_bound import compliance, coulomb_bound, mu_critical
 from sdm_dolfinx.problems import block
 
 COMM = MPI.COMM_WORLD

@@ -26,8 +26,9 @@ import ufl
 from dolfinx import mesh
 
 from sdm_dolfinx import compat
-from sdm_dolfinx.solvers import SemismoothNewton, VIError, friction, friction_system
-from sdm_dolfinx.solvers.friction import FrictionalNewton
+from sdm_dolfinx.solvers import SemismoothNewton, VIError, friction_system
+from sdm_dolfinx.solvers import friction_newton as friction
+from sdm_dolfinx.solvers.friction_newton import FrictionalNewton
 
 COMM = MPI.COMM_WORLD
 #: the solver stops at violations of 1e-10 max|b| (its rtol); the Newton systems are solved

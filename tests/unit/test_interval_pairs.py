@@ -21,9 +21,9 @@ import ufl
 from sdm_dolfinx import compat
 from sdm_dolfinx.method.discretisation import Discretisation
 from sdm_dolfinx.method.errors import DiscretisationError
-from sdm_dolfinx.method.integrator import Integrator
+from sdm_dolfinx.run.integrator import Integrator
 from sdm_dolfinx.method.pairs import PAIRS
-from sdm_dolfinx.post.infsup import TOL, inspect
+from sdm_dolfinx.analysis.infsup import TOL, inspect
 from test_masses import RHO, dense, rod
 
 COMM = MPI.COMM_WORLD

@@ -1,4 +1,4 @@
-"""Newmark (beta = 1/4, gamma = 1/2) and HHT-alpha (method/schemes/newmark.py, hht.py).
+"""Newmark (beta = 1/4, gamma = 1/2) and HHT-alpha (schemes/newmark.py, hht.py).
 
 Definitions (Newmark 1959; Hilber, Hughes, Taylor 1977), alpha = 0 for Newmark:
 
@@ -21,10 +21,10 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from sdm_dolfinx.method import schemes
+from sdm_dolfinx import schemes
 from sdm_dolfinx.method.discretisation import Discretisation
 from sdm_dolfinx.method.errors import DiscretisationError
-from sdm_dolfinx.method.integrator import Integrator
+from sdm_dolfinx.run.integrator import Integrator
 from sdm_dolfinx.problems import membrane, rod1d
 
 COMM = MPI.COMM_WORLD
@@ -262,7 +262,7 @@ def test_contact_treatment_hook(scheme):
     the step imposes no constraint (+inf)."""
     if COMM.size > 1:
         pytest.skip("the rod's contact dof on one rank")
-    from sdm_dolfinx.method.contact import penalty
+    from sdm_dolfinx.contact import penalty
     d = Discretisation(rod1d.problem(COMM, NX=20), "P1/P1", "row-sum")
     k = 2.0 * penalty.stiffness_scale(d) * d.cmeasure[0]
     dt, c = 2e-3, d.cdofs[0]

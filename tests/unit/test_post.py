@@ -13,9 +13,10 @@ import numpy as np
 import pytest
 from dolfinx import fem, mesh as dmesh
 
+from sdm_dolfinx import io as sdm_io
 from sdm_dolfinx import compat, post
 from sdm_dolfinx.problems import load_file, membrane
-from sdm_dolfinx.run.checkpoint import mesh_fingerprint
+from sdm_dolfinx.io.checkpoint import mesh_fingerprint
 
 COMM = MPI.COMM_WORLD
 EXACT = 1e-12
@@ -89,7 +90,7 @@ def test_evaluate_nonmatching_refuses_a_point_beyond_the_padding():
     src, _ = _two_meshes()
     u = fem.Function(_space(src, 1))
     pts = np.array([[2.0, 2.0, 0.0]]) if COMM.rank == 0 else np.zeros((0, 3))
-    with pytest.raises(post.PostprocessError, match="farther"):
+    with pytest.raises(sdm_io.PostprocessError, match="farther"):
         post.evaluate_nonmatching(u, pts, padding=1e-3)
 
 
@@ -128,7 +129,7 @@ def test_read_timeseries_of_a_hand_written_csv(mpi_tmp_path):
     if COMM.rank == 0:
         (mpi_tmp_path / "timeseries.csv").write_text("step,t,energy\n0,0.0,1.5\n1,0.001,1.25e-1\n\n2,0.002,-3\n3,0.0\n")
     COMM.Barrier()
-    ts = post.read_timeseries(mpi_tmp_path, COMM)
+    ts = sdm_io.read_timeseries(mpi_tmp_path, COMM)
     assert list(ts) == ["step", "t", "energy"]
     np.testing.assert_array_equal(ts["step"], [0.0, 1.0, 2.0])
     np.testing.assert_array_equal(ts["t"], [0.0, 0.001, 0.002])
@@ -136,8 +137,8 @@ def test_read_timeseries_of_a_hand_written_csv(mpi_tmp_path):
 
 
 def test_read_timeseries_of_a_missing_file_is_one_error_on_every_rank(mpi_tmp_path):
-    with pytest.raises(post.PostprocessError, match="no timeseries.csv"):
-        post.read_timeseries(mpi_tmp_path / "nothing", COMM)
+    with pytest.raises(sdm_io.PostprocessError, match="no timeseries.csv"):
+        sdm_io.read_timeseries(mpi_tmp_path / "nothing", COMM)
 
 
 # ------------------------------------------------------------------------------ rebuild
@@ -164,8 +165,8 @@ def test_rebuild_of_a_problem_file(mpi_tmp_path):
 def test_rebuild_of_a_problem_built_by_hand_is_one_line():
     """No declaration (no ``args`` in run.json): one line saying so, on every rank."""
     prob = membrane.SPEC.build(COMM, **membrane.SPEC.values({"N": 2}))
-    with pytest.raises(post.PostprocessError, match="without a declaration") as e:
+    with pytest.raises(sdm_io.PostprocessError, match="without a declaration") as e:
         post.rebuild_problem({"problem": prob.describe()}, COMM)
     assert "\n" not in str(e.value)
-    with pytest.raises(post.PostprocessError, match="no 'problem' entry"):
+    with pytest.raises(sdm_io.PostprocessError, match="no 'problem' entry"):
         post.rebuild_problem({}, COMM)

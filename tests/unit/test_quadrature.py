@@ -21,7 +21,7 @@ import ufl
 from sdm_dolfinx import cli, compat, launch, post
 from sdm_dolfinx.method import quadrature
 from sdm_dolfinx.method.discretisation import Discretisation
-from sdm_dolfinx.method.integrator import Integrator
+from sdm_dolfinx.run.integrator import Integrator
 from sdm_dolfinx.method.pairs import PAIRS
 from sdm_dolfinx.problems import disc, membrane
 from sdm_dolfinx.run import plan

@@ -17,11 +17,11 @@ from mpi4py import MPI
 import numpy as np
 import pytest
 
-from sdm_dolfinx.method import schemes
+from sdm_dolfinx import schemes
 from sdm_dolfinx.method.discretisation import Discretisation
-from sdm_dolfinx.method.integrator import Integrator
-from sdm_dolfinx.method.schemes import backward_euler, midpoint
-from sdm_dolfinx.method.schemes.base import Scheme
+from sdm_dolfinx.run.integrator import Integrator
+from sdm_dolfinx.schemes import backward_euler, midpoint
+from sdm_dolfinx.schemes.base import Scheme
 from sdm_dolfinx.problems import membrane
 
 COMM = MPI.COMM_WORLD

@@ -7,7 +7,9 @@ from mpi4py import MPI
 import numpy as np
 import pytest
 
-from sdm_dolfinx.paper import study, table2, table2_report
+from sdm_dolfinx.paper import table2
+from sdm_dolfinx.paper import design as study
+from sdm_dolfinx.report import table2_entry as table2_report
 from sdm_dolfinx.run import num_steps
 
 

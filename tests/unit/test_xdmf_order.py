@@ -1,10 +1,10 @@
 """The restart's mapping between a kept solution.h5 and this run's node and cell order
-(run/xdmf_file.py): independent permutations of nodes and cells are recovered exactly, and
+(io/xdmf_writer.py): independent permutations of nodes and cells are recovered exactly, and
 a file of another mesh is refused."""
 import numpy as np
 import pytest
 
-from sdm_dolfinx.run.xdmf_file import match_cells, match_rows
+from sdm_dolfinx.io.xdmf_writer import match_cells, match_rows
 
 
 def _mesh(seed=0):

@@ -1,0 +1,133 @@
+"""Friction at the constrained vertices (Tresca or Coulomb), the run option ``friction``.
+
+At each constrained vertex i the normal dof is the constrained component (the problem's
+``constraint_component``: the obstacle's normal is that axis) and the tangential dofs are the
+other components: one in 2-D, two in 3-D (then lam_T,i and d_i are 2-vectors and |.| their
+Euclidean norm: the friction cone is a disc). Beside the normal multiplier lam_N,i >= 0 a
+tangential one lam_T,i (the obstacle's tangential reaction, a nodal force like lam_N) satisfies
+
+    Tresca:   |lam_T,i| <= s_i = s * m_i     (s a stress, m_i = the vertex's lumped boundary
+                                              measure, as the contact stress is lam_N,i / m_i),
+    Coulomb:  |lam_T,i| <= mu lam_N,i,
+
+and opposes the slip d_i of the step: |lam_T,i| < bound => d_i = 0 (stick), d_i != 0 =>
+lam_T,i = -bound d_i / |d_i| (slip; in 2-D -bound sign(d_i)). Tresca acts at every constrained vertex, in contact or
+not (the classical Tresca problem, for a body in lasting contact); Coulomb's bound vanishes
+off contact.
+
+Which slip: d = X_t - U^n_t, the step's increment of the iterate the scheme constrains
+(midpoint: X = U^{n+1/2}; backward Euler: X = U^{n+1}). Why: both schemes' energy balance
+(the paper's proof of Theorem 2, with r = K X - b the obstacle's reaction) is
+
+    E^{n+1} - E^n = r . (U^{n+1} - U^n)     (midpoint: exactly; backward Euler: minus its
+                                             numerical dissipation),
+
+and U^{n+1} - U^n = 2 (X - U^n) (midpoint) or X - U^n (backward Euler), so the tangential
+part is 2 sum lam_T,i . d_i = -2 sum bound_i |d_i| <= 0 (midpoint, 2-D and 3-D): friction only removes
+energy, and E + ``dissipated`` (the cumulative -lam_T . (U^{n+1} - U^n)_t) is conserved by
+the midpoint scheme whenever the normal contact does no work (a body resting on the
+obstacle). A slip measured from U^{n-1/2} instead (the previous constrained iterate) would
+leave a term lam_T . (U^{n-1/2} - U^n) of either sign in the balance.
+
+The step problem is solved by :class:`~sdm_dolfinx.solvers.friction_newton.FrictionalNewton` (2-D)
+or :class:`~sdm_dolfinx.solvers.friction_cone.FrictionalNewtonCone` (3-D) (Hüeber, Stadler,
+Wohlmuth's primal-dual active set with stick and slip sets), with the step matrix factorised
+once per run as without friction. In 3-D the step's ``tangential_force`` is |sum lam_T| and
+``tangential_force_t`` its two components; ``Integrator.slip`` and ``Integrator.lam_t`` are
+per-vertex sizes |U^{n+1} - U^n|_t and |lam_T| (``Integrator.slip_t`` and the solver's ``lam_t``
+keep both components).
+"""
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+
+#: the values of the run option ``friction``
+LAWS = ("none", "tresca", "coulomb")
+
+
+@dataclass(frozen=True)
+class Friction:
+    """The friction law of a run: ``law`` (one of :data:`LAWS`), ``mu`` (Coulomb's coefficient)
+    and ``threshold`` (Tresca's threshold, a stress: per unit measure of the boundary)."""
+    law: str = "none"
+    mu: Optional[float] = None
+    threshold: Optional[float] = None
+
+    @property
+    def on(self):
+        return self.law != "none"
+
+    def describe(self):
+        """For run.json."""
+        if not self.on:
+            return {"law": "none"}
+        return {"law": self.law, **({"mu": self.mu} if self.law == "coulomb" else {"threshold": self.threshold}),
+                "slip": "X_t - U^n_t (X: the constrained iterate)"}
+
+
+def check(friction, mu, threshold):
+    """Messages (a list, empty when good) for the run options ``friction``, ``mu``,
+    ``tresca_threshold`` (as the command line spells them)."""
+    law = friction or "none"
+    if law not in LAWS:
+        return [f"unknown friction law {law!r}; choose one of {', '.join(LAWS)}"]
+    errors = []
+    need, other = {"none": (None, None), "tresca": ("tresca_threshold", "mu"),
+                   "coulomb": ("mu", "tresca_threshold")}[law]
+    values = {"mu": mu, "tresca_threshold": threshold}
+    for name, value in values.items():
+        if value is None:
+            continue
+        if name != need:
+            errors.append(f"{name} is for friction {'coulomb' if name == 'mu' else 'tresca'} (friction is {law!r})")
+        elif isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or value < 0:
+            errors.append(f"{name} must be a number >= 0 (got {value!r})")
+    if need is not None and values[need] is None:
+        errors.append(f"friction {law} needs {need}")
+    return errors
+
+
+#: the step solver and linear strategies a frictional step can run with (its own semi-smooth
+#: Newton method through one factorisation of the step matrix)
+SOLVERS, LINEAR = ("ssn",), ("auto", "schur")
+
+
+def check_solver(friction, vi_solver, linear):
+    """Messages (a list) when the run options ask friction for a step solver it has not."""
+    if (friction or "none") == "none" or (vi_solver in SOLVERS and linear in LINEAR):
+        return []
+    return [f"friction {friction} is solved by its own semi-smooth Newton method through one factorisation of the "
+            f"step matrix (vi_solver {' or '.join(SOLVERS)}, linear {' or '.join(LINEAR)}), not vi_solver "
+            f"{vi_solver} with linear {linear}"]
+
+
+def make(friction=None, mu=None, threshold=None):
+    """The :class:`Friction` of the run options (ValueError, one line, when they do not agree)."""
+    errors = check(friction, mu, threshold)
+    if errors:
+        raise ValueError("; ".join(errors))
+    law = friction or "none"
+    return Friction(law, None if mu is None else float(mu), None if threshold is None else float(threshold))
+
+
+def contact_dofs(discretisation, friction):
+    """(tangential dofs paired with ``discretisation.cdofs``: m in 2-D, m x 2 in 3-D; the Tresca
+    thresholds per vertex or None) for ``friction``; ValueError (one line) for a problem friction
+    does not apply to."""
+    d = discretisation
+    p = d.problem
+    shape = tuple(p.shape)
+    if not shape:
+        raise ValueError(f"friction {friction.law}: problem {p.name!r} has a scalar unknown (no tangential "
+                         f"direction)")
+    if shape[0] not in (2, 3):
+        raise ValueError(f"friction {friction.law}: problems with 2 or 3 components only (problem {p.name!r} has "
+                         f"{shape[0]} components)")
+    comp = p.constraint_component
+    if shape[0] == 2:
+        tdofs = (d.cdofs - comp + (1 - comp)).astype(np.int32)
+    else:                               # 3-D: the two other components, in increasing order (m x 2)
+        tdofs = np.column_stack([d.cdofs - comp + c for c in range(3) if c != comp]).astype(np.int32)
+    thresholds = friction.threshold * d.cmeasure if friction.law == "tresca" else None
+    return tdofs, thresholds

@@ -1,0 +1,16 @@
+"""The exceptions every layer shares: one base, :class:`SdmError`, for every error this package
+reports in one line (bad input, a refused combination, a failed step, a folder that cannot take a
+run), so that a user's script can catch them all with ``except SdmError``.
+
+Each concept's own errors derive from these where they are defined (``RunInputError`` in
+:mod:`sdm_dolfinx.run.launch`, ``VIError`` in :mod:`sdm_dolfinx.solvers.base`, ...); what the
+lowest layers and the file formats share is here. Imports nothing of ours.
+"""
+
+
+class SdmError(Exception):
+    """An error this package reports in one line (its message says what and why)."""
+
+
+class StepError(SdmError, RuntimeError):
+    """A time step failed; the message names the step, the time and the cause."""

@@ -1,0 +1,384 @@
+"""One time step of a scheme on a Discretisation: the step's LCP  K X = b + lam  and the update.
+
+For the paper's schemes (midpoint (14)/(23), backward Euler), writing alpha = 2/dt (midpoint) or
+1/dt (backward Euler) and X for the constrained iterate (U^{n+1/2} for the midpoint scheme,
+U^{n+1} for backward Euler):
+
+  M formulation:   (alpha^2 M + A) X = L + M (alpha Vbar^n + alpha^2 U^n) + lam
+  block (U, V):    [A  alpha B^T] [X]   [L + alpha B^T V^n]   [lam]
+                   [alpha B  -C ] [Y] = [alpha B U^n      ] + [ 0 ]
+
+(eliminating Y = alpha C^-1 B (X - U^n) from the block system gives the first line with
+M = B^T C^-1 B). For the midpoint scheme alpha^2 = 4/dt^2, the paper's matrix. Every scheme
+(:mod:`sdm_dolfinx.schemes`) chooses its constant step matrix K = c_M M + c_A A (or its own,
+:mod:`.step_matrix`), builds its right-hand side, may keep state between steps (Newmark's
+acceleration: :attr:`Integrator.stateful`) and updates (U, V) from X; an explicit scheme solves
+with M only (:mod:`.step_mass`). A contact treatment other than the exact one (penalty, Nitsche:
+:mod:`sdm_dolfinx.contact`) replaces the VI by its own step solver.
+
+L is the vector assembled once, or, for a Problem that declares ``time``, L reassembled before
+every step at the time the scheme evaluates the load (:meth:`Scheme.load_time`). Before every
+step the data assembled once are checked unchanged (:class:`~sdm_dolfinx.method.frozen.FrozenData`).
+"""
+from mpi4py import MPI
+
+import numpy as np
+
+from sdm_dolfinx.method import iterative as _iterative, step_matrix as _step_matrix
+from sdm_dolfinx.contact import friction as _friction
+from sdm_dolfinx import schemes
+from sdm_dolfinx.errors import StepError
+from sdm_dolfinx.method.errors import DiscretisationError
+from sdm_dolfinx.solvers import VIError, choose_strategy, make_vi_solver, sparse_factor_matrix
+from sdm_dolfinx.solvers.schur import SCHUR_MAX_ACTIVE_3D
+from sdm_dolfinx.solvers.friction_newton import FrictionalNewton
+from sdm_dolfinx.solvers.friction_cone import FrictionalNewtonCone
+
+#: the registered time schemes' names (:mod:`sdm_dolfinx.schemes`)
+SCHEMES = schemes.names()
+
+
+class Integrator:
+    """One scheme applied to one Discretisation with one time step.
+
+    Args:
+        discretisation: a :class:`sdm_dolfinx.disccretisation.Discretisation`.
+        scheme: a registered scheme's name (:data:`SCHEMES`: ``"midpoint"``, ``"backward-euler"``,
+            ``"newmark"``, ``"hht"``, ``"central-difference"``, ``"paoli-schatzman"``,
+            ``"taylor-flanagan"``).
+        dt: the time step.
+        vi_solver: ``"ssn"`` (semi-smooth Newton, default), ``"vinewtonrsls"``, ``"vinewtonssls"``.
+        linear: linear strategy of the semi-smooth Newton (see :mod:`sdm_dolfinx.solvers`).
+        options: extra PETSc options for the step solver.
+        friction: a :class:`~sdm_dolfinx.contact.friction.Friction` (None: frictionless); with
+            friction the step solver is :class:`~sdm_dolfinx.solvers.friction_newton.FrictionalNewton`
+            (``vi_solver`` "ssn", ``linear`` "auto" or "schur": it factorises K once; others are refused).
+        scheme_options: the scheme's parameters, a dict with keys among ``hht_alpha``,
+            ``restitution`` (None values: the scheme's defaults; see the scheme's module).
+        contact: ``"exact"`` (the VI, default) or a contact treatment of
+            :mod:`sdm_dolfinx.contact` (``"penalty"``, ``"nitsche"``).
+        contact_options: the treatment's parameters (``penalty``, ``nitsche_theta``, ``nitsche_gamma0``).
+
+    Raises:
+        DiscretisationError: a combination the scheme or the treatment refuses (one line).
+        ValueError: a scheme parameter it does not take, or out of its range.
+    """
+
+    def __init__(self, discretisation, scheme="midpoint", dt=1e-3, vi_solver="ssn", linear="auto", options=None,
+                 friction=None, scheme_options=None, contact="exact", contact_options=None):
+        self.time_scheme = ts = schemes.get(scheme).configure(scheme_options)
+        self.discretisation, self.scheme, self.dt = discretisation, scheme, float(dt)
+        self.contact, self.vi_solver = contact, vi_solver
+        self.time_dependent = discretisation.problem.time is not None
+        if self.time_dependent and ts.load_theta is None:
+            raise DiscretisationError(f"problem {discretisation.problem.name!r} has a time-dependent load, and scheme "
+                                      f"{scheme!r} does not say when it evaluates it (Scheme.load_theta)")
+        self.alpha = ts.factor / self.dt if ts.factor is not None else None
+        self.block = discretisation.mass == "consistent"
+        self.nW = discretisation.A.getLocalSize()[0]
+        self.friction = friction if friction is not None and friction.on else None
+        self.treatment, self.state = None, None
+        refused = _friction.check_solver(self.friction and self.friction.law, vi_solver, linear)
+        refused = refused or [r for r in (self._refuse_contact(), ts.refuse(self)) if r]
+        if refused:
+            raise DiscretisationError(refused[0])
+        ts.setup(self)
+        self._build()
+        self._make_solver(vi_solver, linear, options, contact_options)
+        ts.prepare(self)
+
+    @property
+    def stateful(self):
+        """The scheme keeps state beyond (U, V) between steps (Newmark's acceleration): a
+        checkpoint of U and V cannot restart it."""
+        return bool(self.time_scheme.stateful)
+
+    def _refuse_contact(self):
+        """The refusal of a contact treatment with friction or the block variant, or None."""
+        if self.contact == "exact":
+            return None
+        if self.friction is not None:
+            return f"friction needs contact 'exact' (the frictional step is a VI), not {self.contact!r}"
+        if self.block:
+            return (f"contact {self.contact!r} is written in the M formulation; mass 'consistent' solves the "
+                    f"(U, V) block system: use mass 'lumped'")
+        return None
+
+    def _make_solver(self, vi_solver, linear, options, contact_options):
+        d = self.discretisation
+        #: the linear strategy used, and why (``auto``: :func:`~sdm_dolfinx.solvers.choose_strategy`)
+        self.linear_strategy, self.linear_reason = linear, "asked for"
+        if linear == "auto":
+            linear, why = choose_strategy(d.num_constraints, not self.block, self.K.getSize()[0],
+                                          d.problem.mesh.topology.dim, d.comm, explain=True)
+            self.linear_strategy, self.linear_reason = linear, f"auto: {why}"
+        if linear == "cg-gamg" and not self.block:     # GAMG's near-nullspace, P ~ K, a cheap K x
+            self._gamg = _iterative.attach(self.K, d, self.coefficients)
+        # a factorisation of K = c_M B^T D^-1 B + A is cheaper through the sparser
+        # augmented matrix [A, sqrt(c_M) B^T; sqrt(c_M) B, -D] when M is much denser than A (P2/P1)
+        factorised = self.friction is not None or (vi_solver == "ssn" and linear in ("schur", "cg-factor"))
+        self.factor_matrix = None
+        if (factorised and not self.block and self.coefficients is not None and self.coefficients[1] == 1.0
+                and d.B is not None and d.c_lumped is not None):
+            c_M, a = self.coefficients[0], self.alpha
+            scale = a if a is not None and a * a == c_M else np.sqrt(c_M)
+            self.factor_matrix = sparse_factor_matrix(self.K, d.A, d.B, d.c_lumped, scale, d.ddofs)
+        self.slip = None
+        if self.contact != "exact":
+            from sdm_dolfinx import contact as _contact  # lazily: a registry of its own
+            self.treatment = _contact.make(self.contact, self, dict(contact_options or {}))
+            self.solver = self.treatment.solver
+        elif self.friction is None:
+            if d.problem.mesh.topology.dim == 3:     # many more active vertices: see solvers.schur
+                options = {"schur_max_active": str(SCHUR_MAX_ACTIVE_3D), **(options or {})}
+            self.solver = make_vi_solver(vi_solver, self.K, d.cdofs, self.time_scheme.solver_bounds(self),
+                                         symmetric_positive=not self.block, linear=linear, options=options,
+                                         factor_matrix=self.factor_matrix)
+        else:
+            self._friction_solver(options)
+
+    def _friction_solver(self, options):
+        d, f = self.discretisation, self.friction
+        try:
+            self.tdofs, thresholds = _friction.contact_dofs(d, f)
+        except ValueError as e:
+            raise DiscretisationError(str(e)) from None
+        cls = FrictionalNewtonCone if self.tdofs.ndim == 2 else FrictionalNewton      # 3-D: m x 2 tangential dofs
+        self.solver = cls(self.K, d.cdofs, self.tdofs, d.lb, law=f.law, mu=f.mu, threshold=thresholds,
+                          symmetric_positive=not self.block, options=options, factor_matrix=self.factor_matrix)
+        self.slip = np.zeros(len(self.tdofs))
+        self.slip_t = np.zeros(self.tdofs.shape)
+
+    def _build(self):
+        d, ts = self.discretisation, self.time_scheme
+        K = ts.step_matrix(self)
+        #: (c_M, c_A) of K = c_M M + c_A A, or None (the block variant, a scheme's own matrix)
+        self.coefficients = None
+        if K is None and not self.block:
+            self.coefficients = ts.coefficients(self.dt)
+            K = _step_matrix.combination(d, *self.coefficients)
+        elif K is None:
+            K = _step_matrix.block_matrix(d, self.alpha)
+        self.K_full = K
+        # Dirichlet dofs (constant values g): identity rows and columns, lifting z = K g
+        self.K, self.gsys, self.lift = _step_matrix.eliminate(K, d)
+        self.b = self.K.createVecLeft()
+        self.X = self.K.createVecRight()
+        self._tmpW = d.A.createVecLeft()
+        self._tmpW2 = d.A.createVecLeft()
+        self._rigid = {}
+        self._mass = None if self.block else d.mass_product()     # the block variant never forms M
+        # a time-dependent load: the step's L, and L at the time of a recorded state (energies)
+        self._L_step = d.L.copy() if self.time_dependent else None
+        self._L_state, self._L_state_t = (d.L.copy(), 0.0) if self.time_dependent else (None, None)
+
+    def load(self, t=None):
+        """The load vector L at time ``t`` (the vector assembled once when L does not depend on
+        time, or when ``t`` is None)."""
+        if not self.time_dependent or t is None:
+            return self.discretisation.L
+        if t != self._L_state_t:
+            self.discretisation.load(t, self._L_state)
+            self._L_state_t = t
+        return self._L_state
+
+    def rhs(self, U, V, L=None, t=0.0):
+        """Right-hand side of the step from the state (U^n, V^n) at time ``t`` with the load
+        vector ``L`` (default: the one assembled once), Dirichlet lifting applied (the scheme's
+        :meth:`~sdm_dolfinx.schemes.base.Scheme.rhs`)."""
+        return self.time_scheme.rhs(self, U, V, self.discretisation.L if L is None else L, t)
+
+    def alpha_rhs(self, U, V, L):
+        """b = L + M (alpha V^n + alpha^2 U^n) (block: [L + alpha B^T V^n; alpha B U^n]), lifted:
+        the right-hand side of the paper's schemes."""
+        d, a, b, nW = self.discretisation, self.alpha, self.b, self.nW
+        t = self._tmpW
+        if not self.block:
+            V.copy(t)
+            t.scale(a)
+            t.axpy(a * a, U)
+            self._mass(t, self._tmpW2)
+            self._tmpW2.axpy(1.0, L)
+            b.array[:] = self._tmpW2.array
+        else:
+            d.B.multTranspose(V, t)
+            t.scale(a)
+            t.axpy(1.0, L)
+            b.array[:nW] = t.array
+            bu = d.B.createVecLeft()
+            d.B.mult(U, bu)
+            b.array[nW:] = a * bu.array
+        return self.lifted(b)
+
+    def lifted(self, b):
+        """b with the Dirichlet lifting: b - K g off the Dirichlet dofs, g on them (in place)."""
+        d = self.discretisation
+        b.axpy(-1.0, self.lift)
+        b.array[d.ddofs] = self.gsys.array[d.ddofs]
+        return b
+
+    def mass_mult(self, x, y):
+        """y = M x (M formulation)."""
+        self._mass(x, y)
+
+    def step(self, U, V, n, t):
+        """Advance (U, V) from t to t + dt in place; returns the solver info.
+
+        Raises:
+            StepError: naming the step, the time and the cause.
+        """
+        d, ts = self.discretisation, self.time_scheme
+        changed = d.frozen.changed()
+        if changed:
+            raise StepError(f"step {n + 1} (t = {t + self.dt:.6g}): {changed}")
+        L = d.load(ts.load_time(t, self.dt), self._L_step) if self.time_dependent else d.L
+        if ts.stateful and self.state is None:
+            self.state = ts.start(self, U, V, t)
+        b = ts.rhs(self, U, V, L, t)
+        X = self.X
+        ts.guess(self, U, V, X)         # initial guess: the previous displacement
+        try:
+            if self.friction is None:
+                info = self.solver.solve(b, X)
+            else:
+                info = self.solver.solve(b, X, U.array[self.tdofs].copy())
+        except VIError as e:
+            raise StepError(f"step {n + 1} (t = {t + self.dt:.6g}): {e}") from None
+        comm = d.comm
+        # a contact treatment imposes nothing (penetration is its model): +inf
+        imposed = ts.imposed_gap(self, X) if self.treatment is None else float("inf")
+        info["gap_imposed"] = comm.allreduce(imposed, op=MPI.MIN)
+        Un = U.array.copy() if self.friction is not None else None
+        ts.update(self, X, U, V, t)
+        if self.friction is not None:
+            self._friction_info(info, U.array, Un)
+        info["gap_end"] = comm.allreduce(float(np.min(U.array[d.cdofs] - d.lb, initial=np.inf)), op=MPI.MIN)
+        return info
+
+    def _friction_info(self, info, u, un):
+        """The step's tangential force, slip (U^{n+1} - U^n at the tangential dofs) and friction
+        work lam_T . (U^{n+1} - U^n)_t (<= 0), reduced over the ranks, into ``info`` (3-D: the
+        force's size and its components ``tangential_force_t``; ``slip`` per vertex its size)."""
+        comm = self.discretisation.comm
+        self.slip_t = u[self.tdofs] - un[self.tdofs]
+        lam_t = self.solver.lam_t
+        if lam_t.ndim == 1:
+            self.slip = self.slip_t
+            force, work = comm.allreduce(np.array([np.sum(lam_t), np.dot(lam_t, self.slip)]), op=MPI.SUM)
+            info.update(tangential_force=float(force), friction_work=float(work))
+            return
+        # 3-D: the force's two tangential components; slip (per vertex) is |(U^{n+1} - U^n)_t|
+        self.slip = np.linalg.norm(self.slip_t, axis=1)
+        total = comm.allreduce(np.r_[lam_t.sum(axis=0), np.sum(lam_t * self.slip_t)], op=MPI.SUM)
+        info.update(tangential_force=float(np.hypot(total[0], total[1])), tangential_force_t=total[:2].tolist(),
+                    friction_work=float(total[2]))
+
+    @property
+    def lam_t(self):
+        """Tangential multipliers of the last step at the owned constrained vertices (friction; else 0;
+        3-D: their size |lam_T|, the solver's ``lam_t`` has both components)."""
+        if self.friction is None:
+            return np.zeros(len(self.discretisation.cdofs))
+        lam_t = self.solver.lam_t
+        return lam_t if lam_t.ndim == 1 else np.linalg.norm(lam_t, axis=1)
+
+    def contact_status(self, active):
+        """Per owned constrained vertex, given which are in contact (``active``): 0 not in contact,
+        1 in contact and sticking (or without friction), 2 in contact and slipping (the last step's
+        slip set)."""
+        active = np.asarray(active, dtype=bool)
+        slip = np.asarray(self.solver.slip, dtype=bool) if self.friction is not None else np.zeros_like(active)
+        return np.where(active, np.where(slip, 2.0, 1.0), 0.0)
+
+    def initial_velocity(self, V):
+        """The velocity unknown of this formulation from Vbar0 in W^h: Vbar0 itself, or (block
+        variant) V0 in H^h with C V0 = B Vbar0 (condition (6) holds by construction)."""
+        if not self.block:
+            return V
+        bv = self.discretisation.B.createVecLeft()
+        self.discretisation.B.mult(V, bv)
+        return self.discretisation.solve_C(bv)
+
+    def boundary_gap(self, U):
+        """min over every dof of W^h on the constrained boundary (P2 mid-edge nodes included) of
+        U_c - bound, reduced over the ranks (+inf without such dofs)."""
+        d = self.discretisation
+        return d.comm.allreduce(float(np.min(U.array[d.bdofs] - d.blb, initial=np.inf)), op=MPI.MIN)
+
+    def vertex_gap(self, U):
+        """min over the constrained vertices of U_c - bound, reduced over the ranks."""
+        d = self.discretisation
+        return d.comm.allreduce(float(np.min(U.array[d.cdofs] - d.lb, initial=np.inf)), op=MPI.MIN)
+
+    def boundary_gap_where(self, U):
+        """The coordinates (gdim,) of the dof where :meth:`boundary_gap` is reached (collective)."""
+        d = self.discretisation
+        gap = U.array[d.bdofs] - d.blb
+        k = int(np.argmin(gap)) if gap.size else -1
+        _, owner = d.comm.allreduce((float(gap[k]) if k >= 0 else np.inf, d.comm.rank), op=MPI.MINLOC)
+        x = d.comm.bcast(d.bx[:, k] if d.comm.rank == owner else None, root=owner)
+        return x[:d.problem.mesh.geometry.dim]
+
+    @property
+    def active(self):
+        """Which owned constrained dofs are active (the step solver's active set)."""
+        return getattr(self.solver, "active", np.zeros(len(self.discretisation.cdofs), dtype=bool))
+
+    @active.setter
+    def active(self, mask):
+        self.solver.active = mask
+
+    @property
+    def linear_its(self):
+        """Linear (Krylov) iterations of the step solver since the start of the run."""
+        return self.solver.total_linear_its
+
+    @property
+    def lam(self):
+        """Nodal contact forces of the last step at the owned constrained dofs (>= 0 pushes),
+        whatever the contact treatment."""
+        return self.solver.lam
+
+    def contact_energy(self, U):
+        """The energy stored in the contact treatment at the state U (collective; 0.0 for the
+        exact contact)."""
+        return 0.0 if self.treatment is None else float(self.treatment.energy(U))
+
+    def energies(self, U, V, time=None):
+        """(kinetic, potential) of the discrete energy J^h (Theorem 2); a time-dependent load
+        enters the potential at ``time``, the time of the state (see :meth:`load`)."""
+        d = self.discretisation
+        t = self._tmpW
+        d.A.mult(U, t)
+        pot = 0.5 * U.dot(t) - U.dot(self.load(time))
+        if self.block:
+            cv = d.C.createVecLeft()
+            d.C.mult(V, cv)
+            kin = 0.5 * V.dot(cv)
+        else:
+            self._mass(V, t)
+            kin = 0.5 * V.dot(t)
+        return kin, pot
+
+    def momentum(self, V, component):
+        """Discrete momentum e^T M Vbar (or (B e)^T V) along ``component``."""
+        d = self.discretisation
+        if component not in self._rigid:
+            self._rigid[component] = d.rigid_vector(component)
+        e = self._rigid[component]
+        if self.block:
+            be = d.B.createVecLeft()
+            d.B.mult(e, be)
+            return V.dot(be)
+        t = self._tmpW
+        self._mass(e, t)
+        return V.dot(t)
+
+    def destroy(self):
+        if self.treatment is not None:
+            self.treatment.destroy()            # its solver included
+        else:
+            self.solver.destroy()
+        if self.factor_matrix is not None:
+            self.factor_matrix.destroy()
+        self.time_scheme.destroy(self)
