@@ -27,12 +27,12 @@ logging.captureWarnings(False)
 from sdm_dolfinx.problems import disc, membrane  # noqa: E402
 from sdm_dolfinx.problems.base import Problem  # noqa: E402
 from sdm_dolfinx.method.discretisation import Discretisation  # noqa: E402
-from sdm_dolfinx.errors import StepError  # noqa: E402
+from sdm_dolfinx.errors import SdmError, StepError  # noqa: E402
 from sdm_dolfinx.run.integrator import SCHEMES, Integrator  # noqa: E402
 from sdm_dolfinx.method.pairs import MASS_TREATMENTS, PAIRS, Pair, get_pair  # noqa: E402
 from sdm_dolfinx.run import Result, launch, simulate  # noqa: E402
 from sdm_dolfinx.solvers import VIError  # noqa: E402
 
-__all__ = ["membrane", "disc", "Discretisation", "Integrator", "SCHEMES", "StepError", "PAIRS", "Pair",
+__all__ = ["SdmError", "membrane", "disc", "Discretisation", "Integrator", "SCHEMES", "StepError", "PAIRS", "Pair",
            "get_pair", "MASS_TREATMENTS", "Problem", "Result", "simulate", "launch", "VIError"]
 __version__ = "0.1.0"

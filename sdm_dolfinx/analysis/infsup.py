@@ -37,6 +37,7 @@ from mpi4py import MPI
 import numpy as np
 
 from sdm_dolfinx import compat
+from sdm_dolfinx.errors import SdmError
 from sdm_dolfinx.method.discretisation import Discretisation
 from sdm_dolfinx.method.pairs import get_pair
 from sdm_dolfinx.mpiutil import gather_rows
@@ -53,7 +54,7 @@ DENSE_MAX = 1500
 RANK_TOL = 100.0 * math.sqrt(EPS)
 
 
-class InspectError(RuntimeError):
+class InspectError(SdmError, RuntimeError):
     """The measurement cannot be made (e.g. B rank deficient beyond the dense path's size)."""
 
 

@@ -6,11 +6,13 @@ import os
 import re
 import sys
 
+from sdm_dolfinx.errors import SdmError
+
 #: argparse reads "-6e-1" as an option: numbers in exponent notation count as numbers too
 _NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
 
 
-class UsageError(Exception):
+class UsageError(SdmError):
     """Bad input: reported in one line with exit status 2."""
 
 

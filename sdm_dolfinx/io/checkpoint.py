@@ -18,12 +18,13 @@ from mpi4py import MPI
 
 import numpy as np
 
+from sdm_dolfinx.errors import SdmError
 from sdm_dolfinx.mpiutil import atomic_write, atomic_write_text, gather_rows
 
 CHECKPOINT = "checkpoint.npz"
 
 
-class CheckpointError(RuntimeError):
+class CheckpointError(SdmError, RuntimeError):
     """A checkpoint is missing, unreadable or does not match the run."""
 
 

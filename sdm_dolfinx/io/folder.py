@@ -12,6 +12,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
+from sdm_dolfinx.errors import SdmError
 from sdm_dolfinx.mpiutil import on_rank0
 from sdm_dolfinx.io.checkpoint import CheckpointError
 
@@ -22,7 +23,7 @@ LOCK = ".lock"
 RESERVE = 64 * 1024
 
 
-class RunFolderError(RuntimeError):
+class RunFolderError(SdmError, RuntimeError):
     """The output folder cannot take this run (one line, nothing written)."""
 
 

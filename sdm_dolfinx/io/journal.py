@@ -28,12 +28,14 @@ import struct
 from contextlib import contextmanager
 from pathlib import Path
 
+from sdm_dolfinx.errors import SdmError
+
 MAGIC = b"SDMUNDO1"
 _HEAD = struct.Struct("<8sQ32s")        # magic, committed size, token (32 ASCII characters)
 _ENTRY = struct.Struct("<QQ")           # offset, length of the saved bytes that follow
 
 
-class FileVanished(OSError):
+class FileVanished(SdmError, OSError):
     """A run's file was deleted or replaced by someone else while the run was writing it."""
 
     def __init__(self, path):

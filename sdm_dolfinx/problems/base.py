@@ -21,6 +21,8 @@ from mpi4py import MPI
 
 import numpy as np
 
+from sdm_dolfinx.errors import SdmError
+
 
 #: the time-series columns a Problem may add (``extra_columns``): sum of the normal multipliers,
 #: e_x^T M Vbar, the momentum along ``momentum_component``, 1/2 U^T A U
@@ -152,7 +154,7 @@ class Problem:
         return d
 
 
-class ProblemInputError(ValueError):
+class ProblemInputError(SdmError, ValueError):
     """Parameter values a problem refuses (the message may join several, with '; ')."""
 
 

@@ -12,6 +12,7 @@ from mpi4py import MPI
 import numpy as np
 
 from sdm_dolfinx import compat
+from sdm_dolfinx.errors import SdmError
 from sdm_dolfinx.problems import getfem_mesh
 
 #: facet tags of the boundary: the lower and the upper half circle
@@ -36,7 +37,7 @@ MIN_H_RATIO = 1e-3
 CIRCLE_RTOL = 1e-6
 
 
-class MeshError(ValueError):
+class MeshError(SdmError, ValueError):
     """A mesh file that cannot be used (missing, unreadable, not the disc)."""
 
 

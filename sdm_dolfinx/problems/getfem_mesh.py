@@ -22,6 +22,7 @@ import ufl
 from dolfinx import mesh as dmesh
 
 from sdm_dolfinx import compat
+from sdm_dolfinx.errors import SdmError
 
 #: the one convex type read: GetFEM's quadratic (curved) triangle
 PK22 = "GT_PK(2,2)"
@@ -40,7 +41,7 @@ _HEADERS = ("BEGIN POINTS LIST", "END POINTS LIST", "BEGIN MESH STRUCTURE DESCRI
             "END MESH STRUCTURE DESCRIPTION")
 
 
-class GetfemFormatError(ValueError):
+class GetfemFormatError(SdmError, ValueError):
     """Why a ``.mesh`` file cannot be used, in one line (file and line number)."""
 
 

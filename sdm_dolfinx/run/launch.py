@@ -17,6 +17,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
+from sdm_dolfinx.errors import SdmError
 from sdm_dolfinx.method import quadrature
 from sdm_dolfinx.contact import friction
 from sdm_dolfinx import schemes
@@ -69,7 +70,7 @@ REFACTORISING = 2.0
 BYTES_PER_PROCESS = 150e6
 
 
-class RunInputError(ValueError):
+class RunInputError(SdmError, ValueError):
     """A run's inputs are refused (one line; nothing was written)."""
 
 

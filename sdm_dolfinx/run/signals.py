@@ -3,8 +3,10 @@ import signal
 
 from mpi4py import MPI
 
+from sdm_dolfinx.errors import SdmError
 
-class Interrupted(RuntimeError):
+
+class Interrupted(SdmError, RuntimeError):
     """The run stopped at the end of a step on request (SIGINT/SIGTERM), after a checkpoint."""
 
     def __init__(self, message, signum):

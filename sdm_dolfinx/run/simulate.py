@@ -16,6 +16,7 @@ import numpy as np
 
 from sdm_dolfinx import compat
 from sdm_dolfinx.contact import friction as _friction
+from sdm_dolfinx.errors import SdmError
 from sdm_dolfinx.method.discretisation import Discretisation
 from sdm_dolfinx.solvers import VIError
 from sdm_dolfinx.errors import StepError
@@ -31,7 +32,7 @@ from sdm_dolfinx.run.signals import Interrupted, StopFlag
 from sdm_dolfinx.run.solver_state import SolverHistory
 
 
-class SolverSetupError(RuntimeError):
+class SolverSetupError(SdmError, RuntimeError):
     """The step solver could not be set up (nothing was written)."""
 
 

@@ -4,8 +4,10 @@ from mpi4py import MPI
 
 import numpy as np
 
+from sdm_dolfinx.errors import SdmError
 
-class VIError(RuntimeError):
+
+class VIError(SdmError, RuntimeError):
     """A step's variational inequality was not solved (the message says why: PETSc's or the
     active set's reason)."""
 

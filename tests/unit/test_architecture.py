@@ -172,3 +172,23 @@ def test_registries_have_a_register_function(registry, module):
     import importlib
     mod = importlib.import_module(module)
     assert callable(getattr(mod, "register", None)), f"{module} has no register()"
+
+
+def test_every_error_derives_from_sdm_error():
+    """One exception base: every exception class the package defines (warnings aside) is an
+    :class:`sdm_dolfinx.errors.SdmError`, so ``except SdmError`` catches every one-line error."""
+    import importlib
+    import inspect as _inspect
+    from sdm_dolfinx.errors import SdmError
+    found, bad = 0, []
+    for path in modules():
+        if path.name in ("__main__.py", "pyvista_scene.py"):
+            continue
+        mod = importlib.import_module(_module_name(path))
+        for name, cls in vars(mod).items():
+            if (_inspect.isclass(cls) and issubclass(cls, BaseException) and cls.__module__ == mod.__name__
+                    and not issubclass(cls, Warning)):
+                found += 1
+                if not issubclass(cls, SdmError):
+                    bad.append(f"{mod.__name__}.{name}")
+    assert found >= 15 and not bad, f"exceptions without the SdmError base: {bad}"
