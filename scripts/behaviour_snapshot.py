@@ -5,7 +5,9 @@
 
 The set: the membrane (N = 10, T = 0.8, dt = 1e-3) with every registered pair and both time
 schemes (plus the consistent C of P2/P1 and P1+/P1), and the disc at level 1 (dt = 1e-4,
-T = 0.02) with P2/P1 and P2/P2. ``compare`` prints, per run and column, the largest difference
+T = 0.02) with P2/P1 and P2/P2; then, through ``launch``, friction (Coulomb, Tresca; 2-D and
+3-D), the penalty and Nitsche treatments, every other scheme, PETSc's VI solver, the 1-D rod and
+bar, and the constraint at every node (:data:`LAUNCHED`). 38 runs, about a minute. ``compare`` prints, per run and column, the largest difference
 relative to the column's largest magnitude, and exits 1 when one exceeds ``--rtol``.
 """
 import sys
@@ -30,6 +32,38 @@ RUNS = ([("membrane", pair, scheme, None) for pair in ("P1+/P0", "P1/P0", "P1/P1
         + [("disc", pair, "midpoint", None) for pair in ("P2/P1", "P2/P2")])
 
 
+#: (problem, its parameters, run options in launch's flat spelling)
+LAUNCHED = [
+    ("block", {}, dict(friction="coulomb", mu=0.3, T=0.01)),
+    ("block", {}, dict(friction="tresca", tresca_threshold=0.002, T=0.01)),
+    ("block", {"start": "rest"}, dict(contact="penalty", T=0.005)),
+    ("disc", {"level": 1}, dict(contact="nitsche", T=0.01)),
+    ("disc", {"level": 1}, dict(contact="penalty", penalty=1e5, T=0.01)),
+    ("disc", {"level": 1}, dict(constrain="nodes", T=0.01)),
+    ("membrane", {"N": 8}, dict(scheme="newmark", T=0.4)),
+    ("membrane", {"N": 8}, dict(scheme="hht", hht_alpha=-0.1, T=0.4)),
+    ("membrane", {"N": 8}, dict(scheme="central-difference", pair="P1/P1", mass="row-sum", dt=5e-4, T=0.4)),
+    ("membrane", {"N": 8}, dict(scheme="paoli-schatzman", pair="P1/P1", mass="row-sum", dt=5e-4, restitution=0.5,
+                                T=0.4)),
+    ("membrane", {"N": 8}, dict(scheme="taylor-flanagan", pair="P1/P1", mass="row-sum", dt=5e-4, T=0.4)),
+    ("membrane", {"N": 8}, dict(vi_solver="vinewtonrsls", pair="P1+/P0", T=0.3)),
+    ("membrane", {"N": 8}, dict(linear="cg-factor", pair="P2/P1", T=0.3)),
+    ("rod1d", {}, dict(T=2.0)),
+    ("bar", {}, dict(T=1.0)),
+    ("ball", {"level": 1}, dict(friction="coulomb", mu=0.3, T=1.2e-3)),
+]
+
+
+def _launch(name, params, opts):
+    """launch() of whichever API is installed: flat run options, or the grouped ones."""
+    from sdm_dolfinx.run import launch
+    try:
+        from sdm_dolfinx.run.options import grouped
+    except ImportError:
+        return launch(name, params, **opts)
+    return launch(name, params, **grouped(opts))
+
+
 def record(path):
     from mpi4py import MPI
     simulate, membrane, disc = _api()
@@ -40,6 +74,13 @@ def record(path):
         else:
             r = simulate(disc(level=1), pair=pair, scheme=scheme, mass=mass, dt=1e-4, T=0.02)
         key = f"{kind}|{pair}|{scheme}|{mass}"
+        for col, values in r.timeseries.items():
+            out[f"{key}|{col}"] = np.asarray(values)
+        if MPI.COMM_WORLD.rank == 0:
+            print(f"{key}: {len(r.timeseries['step']) - 1} steps", flush=True)
+    for name, params, opts in LAUNCHED:
+        key = f"{name}|{sorted(params.items())}|{sorted(opts.items())}"
+        r = _launch(name, params, opts)
         for col, values in r.timeseries.items():
             out[f"{key}|{col}"] = np.asarray(values)
         if MPI.COMM_WORLD.rank == 0:
