@@ -1,5 +1,6 @@
-"""The package's shape (docs/architecture.md): imports point one way between the layers, and
-modules and functions stay small enough to read in one sitting.
+"""The package's shape (docs/architecture.md): imports point one way between the layers, no folder
+is a catch-all, every error derives from one base, and modules and functions stay small enough to
+read in one sitting.
 
 Imports are read from the source with ``ast`` (function-level imports included), so a cycle
 hidden inside a function is caught as well as one at module level.
@@ -69,7 +70,8 @@ def test_every_module_belongs_to_a_layer():
 
 
 def test_imports_point_down_only():
-    """compat, mpiutil <- problems, solvers <- method <- run <- post <- paper <- cli; nothing imports cli."""
+    """compat, mpiutil, errors <- problems, solvers <- method <- schemes, contact <- io <- run <- analysis, post
+    <- study <- paper, compare, validation <- report <- cli; nothing imports cli."""
     bad = []
     for path in modules():
         name, level = layer_of(path)
@@ -140,6 +142,23 @@ def test_no_import_cycles():
                     seen.add(nxt)
                     stack.append((nxt, trail + [nxt]))
     assert not cycles, "import cycles:\n" + "\n".join(sorted(set(cycles))[:10])
+
+
+#: no folder of the package holds more than this share of its lines (folders by concept, none a catch-all)
+MAX_FOLDER_SHARE = 0.15
+
+
+def test_no_folder_is_a_catch_all():
+    """Folders by concept: none holds over 15 % of the package's lines (subfolders counted with their folder)."""
+    lines = {p: len(p.read_text().splitlines()) for p in modules()}
+    total = sum(lines.values())
+    folders = {}
+    for p, n in lines.items():
+        rel = p.relative_to(PACKAGE)
+        if len(rel.parts) > 1:
+            folders[rel.parts[0]] = folders.get(rel.parts[0], 0) + n
+    big = {f: f"{n / total:.1%}" for f, n in folders.items() if n > MAX_FOLDER_SHARE * total}
+    assert len(folders) >= 10 and not big, f"folders over {MAX_FOLDER_SHARE:.0%} of {total} lines: {big}"
 
 
 def test_modules_are_small():
