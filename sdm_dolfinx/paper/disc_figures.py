@@ -1,6 +1,6 @@
 """The disc's figures (paper section 5, Figs. 13-16): the mesh, the standard P2 method
 against the singular dynamic method, and the convergence study. Each returns a report
-entry ``{"key", "png", "ours", "numbers"}``; rank 0 only."""
+:class:`~sdm_dolfinx.study.entry.Entry`; rank 0 only."""
 import math
 
 from mpi4py import MPI
@@ -10,7 +10,8 @@ import numpy as np
 from sdm_dolfinx import post, problems
 from sdm_dolfinx.method.discretisation import Discretisation
 from sdm_dolfinx.study.series import Series, l1_diff
-from sdm_dolfinx.study.text import jsonable, listing, pct, verdict
+from sdm_dolfinx.study.entry import Entry, Verdict
+from sdm_dolfinx.study.text import jsonable, listing, pct
 from sdm_dolfinx.study.plotting import COLOURS, cells_p2, plot_three, pyplot, save
 from sdm_dolfinx.study.runs import read_run_info
 from sdm_dolfinx.paper.design import PAPER_RATE, PAPER_TABLE2
@@ -36,8 +37,8 @@ def fig13(study, runs_dir, out):
     text = (f"Ours: gmsh (MeshAdapt, curved P2 boundary, h = {LEVELS[1]} mm) gives {len(cells)} triangles and "
             f"{dofs} P2 displacement dofs against the paper's {PAPER_DOFS[1]} "
             f"({100 * (dofs / PAPER_DOFS[1] - 1):+.1f} %); "
-            f"{len(cx)} boundary vertices of the lower half circle may touch. " + verdict(ok))
-    return {"key": "fig13", "png": png, "ours": text, "numbers": {"cells": len(cells), "dofs": dofs}}
+            f"{len(cx)} boundary vertices of the lower half circle may touch. ")
+    return Entry("fig13", text, Verdict.of(ok), png=png, numbers={"cells": len(cells), "dofs": dofs})
 
 
 def fig_disc(study, pair, runs_dir, out):
@@ -72,7 +73,8 @@ def fig_disc(study, pair, runs_dir, out):
                 f"oscillation index at A (total variation over twice the peak: 1 for one smooth bump) is "
                 f"{listing(f'{x:.2g}' for x in osc)}. "
                 + ("" if close else f"At dt = {dstr[0]} ours is further from conservation than the paper's "
-                   f"'close to energy conserving'. ") + verdict(ok and close, ok))
+                   f"'close to energy conserving'. "))
+        verdict = Verdict.of(ok and close, ok)
     else:
         decreasing = dev[-1] < dev[0]
         l1 = l1_diff(ser[-1], ser[0], "lambda_probe")
@@ -81,8 +83,9 @@ def fig_disc(study, pair, runs_dir, out):
         text = (f"Ours: the largest energy deviation is {listing(pct(x) for x in dev)} for dt = {listing(dstr)}, "
                 f"{'decreasing' if decreasing else 'not decreasing'} with dt; the peak contact stress at A is "
                 f"{listing(f'{x:.3g}' for x in peaks)} N/mm² and the two stress curves differ by {pct(l1)} in L1 "
-                f"(oscillation index {listing(f'{x:.2g}' for x in osc)}). " + verdict(ok, decreasing))
-    return {"key": f"fig{num}", "png": png, "ours": text, "numbers": nums}
+                f"(oscillation index {listing(f'{x:.2g}' for x in osc)}). ")
+        verdict = Verdict.of(ok, decreasing)
+    return Entry(f"fig{num}", text, verdict, png=png, numbers=nums)
 
 
 def fig16(study, conv, runs_dir, out):
@@ -110,8 +113,9 @@ def fig16(study, conv, runs_dir, out):
     fig.tight_layout()
     png = save(fig, out / "fig16_disc_convergence.png")
     devs = {lev: ser[lev].energy_dev() for lev in shown}
-    return {"key": "fig16", "png": png, "ours": _fig16_text(conv, shown, devs),
-            "numbers": {"energy_dev": {str(k): v for k, v in devs.items()}, **jsonable(conv)}}
+    text, verdict = _fig16_text(conv, shown, devs)
+    return Entry("fig16", text, verdict, png=png,
+                 numbers={"energy_dev": {str(k): v for k, v in devs.items()}, **jsonable(conv)})
 
 
 def _error_panel(ax, conv):
@@ -141,7 +145,7 @@ def _error_panel(ax, conv):
 
 
 def _fig16_text(conv, shown, devs):
-    """Fig. 16's verdict: energy deviation and H¹ errors decreasing, rate close to the paper's."""
+    """Fig. 16's sentence and verdict: energy deviation and H¹ errors decreasing, rate close to the paper's."""
     coarse = [lev for lev in conv["levels"] if lev != conv["reference_level"]]
     ee = [conv["errors"][lev] for lev in coarse]
     fit = conv["fit_levels"]
@@ -168,8 +172,8 @@ def _fig16_text(conv, shown, devs):
             f" (rate {conv['rate_metres']:.2f}). "
             + ("" if conv["reference_level"] == 6 else
                f"Our reference is level {conv['reference_level']}, not the paper's level 6, so the errors of the "
-               f"levels next to it are underestimated. ")
-            + verdict(dec_E and dec_err and rate_ok, dec_err))
+               f"levels next to it are underestimated. "),
+            Verdict.of(dec_E and dec_err and rate_ok, dec_err))
 
 
 def _program_clause(conv):

@@ -1,6 +1,6 @@
 """The membrane's figures (paper section 4, Figs. 2-11): each reads its runs' time series,
-draws the paper's plot and returns a report entry ``{"key", "png", "ours", "numbers"}``
-whose ``ours`` sentence, computed from the numbers, says whether ours agrees with the paper.
+draws the paper's plot and returns a report :class:`~sdm_dolfinx.study.entry.Entry` whose
+verdict, computed from the numbers, says whether ours agrees with the paper.
 Rank 0 only (the files are read with the serial readers)."""
 import math
 
@@ -9,7 +9,8 @@ import numpy as np
 from sdm_dolfinx import post
 from sdm_dolfinx.study.series import Series, curve_diff, l2_diff
 from sdm_dolfinx.paper.numbers import counting_condition, counts_ok
-from sdm_dolfinx.study.text import listing, pct, verdict
+from sdm_dolfinx.study.entry import Entry, Verdict
+from sdm_dolfinx.study.text import listing, pct
 from sdm_dolfinx.study.plotting import COLOURS, plot_three, pyplot, save
 from sdm_dolfinx.paper.design import BE_PAIRS, MEMBRANE_PAIRS, WELL_POSED, slug
 
@@ -32,17 +33,18 @@ def fig_pair(study, pair, runs_dir, out, scheme="midpoint"):
     nums["rebound"] = [s.rebound() for s in ser]
     dstr = [f"{dt:g}" for dt in dts]
     if scheme != "midpoint":
-        text = _backward_euler_text(study, pair, ser, nums, dstr)
+        text, verdict = _backward_euler_text(study, pair, ser, nums, dstr)
     elif WELL_POSED[pair]:
-        text = _stable_text(nums, dstr)
+        text, verdict = _stable_text(nums, dstr)
     else:
         good = [Series(runs_dir / group["P1+/P0"][dt].name) for dt in dts] if "P1+/P0" in group else None
-        text = _unstable_text(ser, nums, dstr, good)
-    return {"key": key, "png": png, "ours": text, "numbers": nums}
+        text, verdict = _unstable_text(ser, nums, dstr, good)
+    return Entry(key, text, verdict, png=png, numbers=nums)
 
 
 def _stable_text(nums, dstr):
-    """A well-posed pair with the midpoint scheme: energy conserved as dt decreases, and converging."""
+    """A well-posed pair with the midpoint scheme: energy conserved as dt decreases, and converging.
+    Returns (sentence, verdict)."""
     dev, du = nums["energy_dev"], nums["u_change"]
     decreasing = all(dev[k + 1] < dev[k] for k in range(len(dev) - 1))
     if len(du) >= 2:
@@ -57,12 +59,13 @@ def _stable_text(nums, dstr):
                      f"two time steps (convergence needs a third dt: the full study adds 1e-4)")
     return (f"Ours: the largest energy deviation max|J−J0|/J0 is {listing(pct(x) for x in dev)} for dt = "
             f"{listing(dstr)}, {'decreasing' if decreasing else 'not decreasing'} with dt" + conv_text
-            + f"; peak contact stress at the centre {listing(f'{x:.3g}' for x in nums['stress_peak'])}. "
-            + verdict(decreasing and converging and dev[-1] < 0.05, decreasing or du[-1] < du[0]))
+            + f"; peak contact stress at the centre {listing(f'{x:.3g}' for x in nums['stress_peak'])}. ",
+            Verdict.of(decreasing and converging and dev[-1] < 0.05, decreasing or du[-1] < du[0]))
 
 
 def _unstable_text(ser, nums, dstr, good):
-    """An ill-posed pair with the midpoint scheme: the energy grows after the impact, more for small dt."""
+    """An ill-posed pair with the midpoint scheme: the energy grows after the impact, more for small dt.
+    Returns (sentence, verdict)."""
     g = nums["growth"]
     grows = g[-1] > 1.5
     worse = all(g[k + 1] >= g[k] for k in range(len(g) - 1))
@@ -75,12 +78,12 @@ def _unstable_text(ser, nums, dstr, good):
             + f" and the peak contact stress is {listing(f'{x:.3g}' for x in nums['stress_peak'])}"
             + (f" (P1+/P0: {ref_peak})" if ref else "") + ". "
             + ("The growth is larger for the smaller time step. " if worse else
-               "The growth is not monotone in dt. ") + verdict(grows and worse, grows))
+               "The growth is not monotone in dt. "), Verdict.of(grows and worse, grows))
 
 
 def _backward_euler_text(study, pair, ser, nums, dstr):
     """Backward Euler: the energy never increases; its loss at impact vanishes with dt only
-    for a well-posed pair. Adds the losses to ``nums``."""
+    for a well-posed pair. Adds the losses to ``nums``; returns (sentence, verdict)."""
     loss = [(-x if not math.isnan(x) else x) for x in nums["final_error"]]
     lc = [s.losses()[0] for s in ser]
     lf = [s.losses()[1] for s in ser]
@@ -92,10 +95,10 @@ def _backward_euler_text(study, pair, ser, nums, dstr):
     if WELL_POSED[pair]:
         ok = all(loss[k + 1] < loss[k] for k in range(len(loss) - 1)) and lc[-1] < 0.5 * lc[0]
         return base + ("The loss, at impact included, shrinks as dt decreases. " if ok else
-                       "The loss does not shrink as dt decreases. ") + verdict(ok and mono < 1e-8)
+                       "The loss does not shrink as dt decreases. "), Verdict.of(ok and mono < 1e-8)
     ok = lc[-1] > 0.05 and lc[-1] > 0.5 * lc[0]
     return base + ("The loss at impact stays as dt decreases. " if ok else
-                   "The loss at impact shrinks with dt. ") + verdict(ok and mono < 1e-8, ok)
+                   "The loss at impact shrinks with dt. "), Verdict.of(ok and mono < 1e-8, ok)
 
 
 # ----------------------------------------------------------------- Figs. 9-11: meshes
@@ -119,8 +122,8 @@ def fig09(study, runs_dir, out):
     ok = min(lc) > 0.05 and lc[-1] > 0.5 * lc[0]
     text = (f"Ours: during the steps in contact the energy drops by {listing(pct(x) for x in lc)} of J0 for h = "
             f"{listing(f'1/{N}' for N in Ns)} (in free flight by {listing(pct(x) for x in lf)}): the loss at impact "
-            f"{'does not vanish' if ok else 'shrinks'} as h decreases. " + verdict(ok))
-    return {"key": "fig09", "png": png, "ours": text, "numbers": {"N": Ns, "contact_loss": lc, "flight_loss": lf}}
+            f"{'does not vanish' if ok else 'shrinks'} as h decreases. ")
+    return Entry("fig09", text, Verdict.of(ok), png=png, numbers={"N": Ns, "contact_loss": lc, "flight_loss": lf})
 
 
 def _exclusion_text(pairs, Ns, series_of):
@@ -173,9 +176,9 @@ def fig10(study, runs_dir, out):
             f"(relative L²(0, T) difference) for h = {listing(f'1/{N}' for N in Ns)}: the two methods "
             f"{'get closer' if ok else 'do not get closer'} as h and dt decrease. From one mesh to the next the "
             + "; ".join(f"{p} curve changes by {listing(pct(x) for x in succ[p])}" for p in pairs)
-            + (" (slow convergence, as the paper remarks). " if all(slow.values()) and Ns else ". ") + verdict(ok))
-    return {"key": "fig10", "png": png, "ours": text,
-            "numbers": {"N": Ns, "pair_difference": between, "successive_change": succ}}
+            + (" (slow convergence, as the paper remarks). " if all(slow.values()) and Ns else ". "))
+    return Entry("fig10", text, Verdict.of(ok), png=png,
+                 numbers={"N": Ns, "pair_difference": between, "successive_change": succ})
 
 
 def fig11(study, runs_dir, out):
@@ -193,9 +196,9 @@ def fig11(study, runs_dir, out):
     png = save(fig, out / "fig11_energy_error_vs_dt_over_h.png")
     text = ("Ours: " + "; ".join(texts) + ". "
             + ("J(T) − J0 takes both signs, so single points of |J(T) − J0| dip. "
-               if len(signs - {0.0}) > 1 else "")
-            + verdict(all(v[0] for v in verdicts), all(v[0] or v[1] for v in verdicts)))
-    return {"key": "fig11", "png": png, "ours": text, "numbers": nums}
+               if len(signs - {0.0}) > 1 else ""))
+    verdict = Verdict.of(all(v[0] for v in verdicts), all(v[0] or v[1] for v in verdicts))
+    return Entry("fig11", text, verdict, png=png, numbers=nums)
 
 
 def _fig11_pair(study, pair, runs_dir, ax, signs):

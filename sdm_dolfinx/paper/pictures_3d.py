@@ -1,7 +1,8 @@
 """The report's 3-D pictures: the membrane on the obstacle (paper Fig. 1) and the disc at
 maximal compression. pyvista renders them off screen in a child process
 (:mod:`sdm_dolfinx.study.pyvista_scene`); without pyvista, or when it fails, matplotlib
-draws them. Rank 0 only: the stored states are read with the serial HDF5 reader."""
+draws them. Each returns a report :class:`~sdm_dolfinx.study.entry.Entry` (no numbers). Rank 0
+only: the stored states are read with the serial HDF5 reader."""
 from mpi4py import MPI
 
 import numpy as np
@@ -9,6 +10,7 @@ import ufl
 
 from sdm_dolfinx import compat, post
 from sdm_dolfinx import io as sdm_io
+from sdm_dolfinx.study.entry import Entry, Verdict
 from sdm_dolfinx.study.pictures import peak_state, pick_state, render_pyvista
 from sdm_dolfinx.study.series import Series
 from sdm_dolfinx.study.plotting import cells_p2, pyplot
@@ -39,12 +41,16 @@ def picture_membrane(study, runs_dir, out):
     ok, reason = render_pyvista("membrane", {"topology": topo, "types": types, "points": x, "u": z, "scale": scale,
                                              "contact": x[contact] * [1, 1, 0] + [0, 0, 2e-4],
                                              "title": title + f" (vertical scale x{scale:g})"}, png)
-    entry = {"key": "fig01", "png": png.name, "renderer": "pyvista" if ok else "matplotlib", "t": t,
-             "contact_vertices": int(contact.sum())}
     if not ok:
         _membrane_mpl(png, topo, x, z, contact, title + "\n(matplotlib 3-D: " + reason + ")")
-        entry["reason"] = reason
-    return entry
+    n = int(contact.sum())
+    return Entry("fig01", f"Ours: {n} vertices rest on the obstacle at t = {t:.3g} ({_how(ok, reason)}). ",
+                 Verdict.of(n > 0), png=png.name)
+
+
+def _how(ok, reason):
+    """How a picture was rendered (and why not with pyvista)."""
+    return f"rendered with {'pyvista' if ok else 'matplotlib'}" + ("" if ok or not reason else f"; {reason}")
 
 
 def _membrane_mpl(png, topo, x, z, contact, title):
@@ -103,12 +109,10 @@ def picture_disc(study, runs_dir, out):
     disp[:, :2] = u.x.array.reshape(-1, 2)[:len(x)]
     ok, reason = render_pyvista("disc", {"topology": topo, "types": types, "points": x, "disp": disp, "vm": vm,
                                          "depth": depth, "title": title}, png)
-    entry = {"key": "disc3d", "png": png.name, "renderer": "pyvista" if ok else "matplotlib", "t": t,
-             "contact_force": force}
     if not ok:
         _disc_mpl(png, W, u, vm, depth, title + "\n(matplotlib 3-D, true scale: " + reason + ")")
-        entry["reason"] = reason
-    return entry
+    return Entry("disc3d", f"Ours: maximal compression at t = {1e3 * t:.2f} ms with a contact force of {force:.0f} N "
+                 f"per mm ({_how(ok, reason)}). ", Verdict.of(force > 0), png=png.name)
 
 
 def _disc_mpl(png, W, u, vm, depth, title):

@@ -1,6 +1,8 @@
 """The report: every figure from the runs' files, then ``index.html`` (each of our figures
 next to what the paper's figure shows and a verdict computed from our numbers) and
-``numbers.json`` (every number quoted)."""
+``numbers.json`` (every number quoted). Every figure and study is a
+:class:`~sdm_dolfinx.study.entry.Entry`; the summary reads each entry's ``verdict``, never its
+sentence."""
 import html
 
 from mpi4py import MPI
@@ -13,7 +15,8 @@ from sdm_dolfinx.paper.design import BE_PAIRS, MEMBRANE_PAIRS
 from sdm_dolfinx.report import comparison_entry as compare_report, hertz_entry as hertz_report
 from sdm_dolfinx.report import table2_entry as table2_report
 from sdm_dolfinx.study.runs import duration, read_run_info
-from sdm_dolfinx.study.text import html_table, jsonable, verdict
+from sdm_dolfinx.study.entry import Verdict
+from sdm_dolfinx.study.text import html_table, jsonable
 from sdm_dolfinx.validation import friction_impact, friction_rigid as friction
 
 COMM = MPI.COMM_WORLD
@@ -85,7 +88,7 @@ def make_report(study, runs_dir, out, records, comm=COMM, say=print, meta=None):
     comparison = compare_report.entry(study, runs_dir, out, comm, say)     # collective runs
     ball = hertz_report.entries(study, runs_dir, out, comm, say)           # collective runs
     if comm.rank == 0:
-        entries.append(_with_verdict(pictures.picture_membrane(paper, runs_dir, out)))
+        entries.append(pictures.picture_membrane(paper, runs_dir, out))
         for pair in MEMBRANE_PAIRS:
             entries.append(figures.fig_pair(paper, pair, runs_dir, out))
         for pair in BE_PAIRS:
@@ -97,7 +100,7 @@ def make_report(study, runs_dir, out, records, comm=COMM, say=print, meta=None):
                     disc_figures.fig16(paper, conv, runs_dir, out)]
         t2 = table2_report.entry(paper, t2_errors, runs_dir)
         entries.append(t2)
-        entries.append(_with_verdict(pictures.picture_disc(paper, runs_dir, out)))
+        entries.append(pictures.picture_disc(paper, runs_dir, out))
         # not in the paper: closed forms instead
         entries += [friction.fig_incline(study.friction, runs_dir, out),
                     friction.fig_block(study.friction, runs_dir, out),
@@ -113,41 +116,33 @@ def make_report(study, runs_dir, out, records, comm=COMM, say=print, meta=None):
     return entries
 
 
-def _with_verdict(e):
-    """A 3-D picture's entry with its ``ours`` sentence."""
-    how = f"rendered with {e['renderer']}" + (f"; {e['reason']}" if e.get("reason") else "")
-    if e["key"] == "fig01":
-        e["ours"] = (f"Ours: {e['contact_vertices']} vertices rest on the obstacle at t = {e['t']:.3g} ({how}). "
-                     + verdict(e["contact_vertices"] > 0))
-    else:
-        e["ours"] = (f"Ours: maximal compression at t = {1e3 * e['t']:.2f} ms with a contact force of "
-                     f"{e['contact_force']:.0f} N per mm ({how}). " + verdict(e["contact_force"] > 0))
-    return e
+#: the CSS class of an entry's section, by verdict
+_VERDICT_CLASS = {Verdict.AGREES: "v-yes", Verdict.IN_PART: "v-part", Verdict.DISAGREES: "v-no"}
 
 
-def _verdict_of(e):
-    """yes, part or no: the verdict an entry's sentence ends with."""
-    return "yes" if "Ours agrees." in e["ours"] else ("part" if "agrees in part" in e["ours"] else "no")
+def summary(entries):
+    """(key, verdict string) of every entry, in order: the report's summary table and numbers.json's
+    ``verdicts`` (read from each entry's verdict, never from its sentence)."""
+    return [(e.key, e.verdict.value) for e in entries]
 
 
 def write_report(out, entries, t2, checks, records, study, meta):
-    """index.html (figures next to the paper's statement and our computed verdict) + numbers.json."""
-    summary = [(e["key"], {"yes": "agrees", "part": "in part", "no": "does not agree"}[_verdict_of(e)])
-               for e in entries]
-    parts = _head(study, meta) + ["<h2>Summary</h2>" + html_table(["figure", "verdict"], summary)]
-    first_friction = next((i for i, e in enumerate(entries) if e.get("says") and not e.get("head")
-                           and not e.get("section")), None)
+    """index.html (figures next to the paper's statement and our computed verdict) + numbers.json;
+    ``entries`` and ``t2`` (Table 2's) are :class:`~sdm_dolfinx.study.entry.Entry`."""
+    verdicts = summary(entries)
+    parts = _head(study, meta) + ["<h2>Summary</h2>" + html_table(["figure", "verdict"], verdicts)]
+    first_friction = next((i for i, e in enumerate(entries) if e.says and not e.head and not e.section), None)
     for i, e in enumerate(entries):
         if i == first_friction:            # entries with a closed form of their own ("says"), not the paper's
             parts.append(_FRICTION_HEAD)
-        if e.get("head"):                  # a section of its own (the comparison of methods)
-            parts.append(e["head"])
-        parts.append(_section(e, t2))
+        if e.head:                         # a section of its own (the comparison of methods)
+            parts.append(e.head)
+        parts.append(_section(e))
     parts += _energy_section(checks) + _runs_section(study, records, meta) + ["</body></html>"]
     atomic_write_text(out / "index.html", "\n".join(parts))
     numbers = {"mode": "quick" if study.quick else "full", "meta": {k: str(v) for k, v in meta.items()},
-               "figures": {e["key"]: jsonable(e.get("numbers", {})) for e in entries},
-               "verdicts": dict(summary), "energy_checks": checks, "table2": t2["numbers"]}
+               "figures": {e.key: jsonable(e.numbers) for e in entries},
+               "verdicts": dict(verdicts), "energy_checks": checks, "table2": t2.numbers}
     atomic_write_text(out / "numbers.json", json_text(numbers, indent=1))
 
 
@@ -177,15 +172,16 @@ def _head(study, meta):
     return parts
 
 
-def _section(e, t2):
-    """One figure: the paper's statement, our sentence, the picture (and Table 2's rows)."""
-    parts = [f"<section class='v-{_verdict_of(e)}' id='{e['key']}'><h2>{e['key']}</h2>"
-             f"<p class='paper'>{html.escape(e.get('says') or PAPER_SAYS[e['key']])}</p>"
-             f"<p class='ours'>{html.escape(e['ours'])}</p>"]
-    if e.get("png"):
-        parts.append(f"<img src='{e['png']}' alt='{e['key']}'>")
-    if e.get("html"):
-        parts.append(e["html"])
+def _section(e):
+    """One figure: the reference's statement, our sentence with the verdict's, the picture, its HTML
+    (Table 2's rows)."""
+    parts = [f"<section class='{_VERDICT_CLASS[e.verdict]}' id='{e.key}'><h2>{e.key}</h2>"
+             f"<p class='paper'>{html.escape(e.says or PAPER_SAYS[e.key])}</p>"
+             f"<p class='ours'>{html.escape(e.ours)}</p>"]
+    if e.png:
+        parts.append(f"<img src='{e.png}' alt='{e.key}'>")
+    if e.html:
+        parts.append(e.html)
     parts.append("</section>")
     return "\n".join(parts)
 

@@ -11,6 +11,7 @@ import numpy as np
 from sdm_dolfinx import problems
 from sdm_dolfinx.compare import comparison as compare
 from sdm_dolfinx.compare.table import html_section
+from sdm_dolfinx.study.entry import Entry, Verdict
 
 #: the report's grids: h (dt = h / 2) and T (one period of the rod: its three phases once), quick
 #: (51 runs, about 20 s on one core) and full (85 runs, about 40 s)
@@ -53,7 +54,7 @@ def _rate(data, method, metric="u_LinfL2"):
 
 
 def ours(data):
-    """The measured sentence and the verdict: every finished method's displacement converges (its fitted
+    """(sentence, verdict): agrees when every finished method's displacement converges (its fitted
     u_LinfL2 rate > 0), and the standard mass's exact enforcement (Newmark) oscillates more than every
     modified-mass method (oscillation index)."""
     rank = data["ranking"]
@@ -73,9 +74,7 @@ def ours(data):
                "standard-newmark did not run. ")
             + (f"Not run here (refused or an error; see the table): {', '.join(refused)}. " if refused else ""))
     ok_rates = len(converge) == len(done) and done
-    verdict = ("Ours agrees." if ok_rates and smoother else
-               "Ours agrees in part." if ok_rates or smoother else "Ours does not agree.")
-    return text + verdict
+    return text, Verdict.of(ok_rates and smoother, ok_rates or smoother)
 
 
 def _entry(cmp, data, seconds):
@@ -88,10 +87,10 @@ def _entry(cmp, data, seconds):
     command = (f"python -m sdm_dolfinx compare --problem {cmp.problem} --methods all --h "
                + ",".join(f"1/{round(1 / h)}" for h, _ in sorted(cmp.grid, reverse=True))
                + f" --dt-ratio 0.5 --T {cmp.T:g}")
-    return {"key": f"compare-{cmp.problem}", "says": SAYS, "ours": ours(data),
-            "png": f"{folder}/compare_convergence.png",
-            "head": ("<h2>Which method? (issue 18; not in the paper)</h2><p>Every method of the comparison's "
-                     f"catalogue on GetFEM's rod against its closed form, the same grid for all; command "
-                     f"<code>{html.escape(command)}</code>; {seconds:.0f} s in this invocation.</p>"),
-            "html": table + images,
-            "numbers": {"ranking": data["ranking"], "rates": data["rates"], "seconds": seconds, "command": command}}
+    text, verdict = ours(data)
+    return Entry(f"compare-{cmp.problem}", text, verdict, says=SAYS, png=f"{folder}/compare_convergence.png",
+                 head=("<h2>Which method? (issue 18; not in the paper)</h2><p>Every method of the comparison's "
+                       f"catalogue on GetFEM's rod against its closed form, the same grid for all; command "
+                       f"<code>{html.escape(command)}</code>; {seconds:.0f} s in this invocation.</p>"),
+                 html=table + images,
+                 numbers={"ranking": data["ranking"], "rates": data["rates"], "seconds": seconds, "command": command})

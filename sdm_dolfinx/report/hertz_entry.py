@@ -26,7 +26,8 @@ import numpy as np
 from sdm_dolfinx.mpiutil import atomic_write_text, json_text
 from sdm_dolfinx.validation import ball_pictures
 from sdm_dolfinx.validation import hertz
-from sdm_dolfinx.study.text import html_table, verdict
+from sdm_dolfinx.study.entry import Entry, Verdict
+from sdm_dolfinx.study.text import html_table
 from sdm_dolfinx.problems import ball
 
 #: (level, dt (s)) of the report's runs, cheapest first; the last one is the finest (and pictured)
@@ -141,8 +142,8 @@ def entries(study, runs_dir, out, comm=MPI.COMM_WORLD, say=print):
 
 
 def ours(rows):
-    """The sentence and verdict: t_c and F_max within :data:`TOLERANCE` of Hertz on the finest level
-    (its smallest dt); in part when one of them is."""
+    """(sentence, verdict): t_c and F_max within :data:`TOLERANCE` of Hertz on the finest level (its
+    smallest dt) agrees; in part when one of them is."""
     fine = max(rows, key=lambda r: (r["level"], -r["dt"]))
     ok = [abs(fine[f"err_{k}"]) <= TOLERANCE for k in ("t_c", "F_max")]
     each = "; ".join(f"level {r['level']}, dt = {r['dt']:g} s: {100 * r['err_t_c']:+.1f} %, "
@@ -153,8 +154,8 @@ def ours(rows):
             f"{'within' if ok[0] else 'not within'} and F_max {'within' if ok[1] else 'not within'} "
             f"{100 * TOLERANCE:g} % of Hertz"
             + (f"; the ball leaves at {_span(rebound, '.4f')} times v" if rebound else "")
-            + f"; the energy stays within {100 * max(r['energy_max_dev'] for r in rows):.2f} % of its initial value. "
-            + verdict(all(ok), any(ok)))
+            + f"; the energy stays within {100 * max(r['energy_max_dev'] for r in rows):.2f} % of its initial value. ",
+            Verdict.of(all(ok), any(ok)))
 
 
 def _span(values, fmt):
@@ -198,8 +199,9 @@ def table_entry(rows, computed, seconds):
                                              "err_t_c", "err_F_max", "err_delta_max", "rebound", "energy_max_dev",
                                              "seconds")} for r in rows],
             "hertz": rows[0]["hertz"], "computed": computed, "seconds": seconds, "command": command}
-    return {"key": "hertz", "section": "hertz", "says": SAYS, "ours": ours(rows), "png": "hertz/hertz_force.png",
-            "head": head, "html": body, "numbers": nums}
+    text, verdict = ours(rows)
+    return Entry("hertz", text, verdict, section="hertz", says=SAYS, png="hertz/hertz_force.png", head=head,
+                 html=body, numbers=nums)
 
 
 def picture_entry(p):
@@ -218,6 +220,7 @@ def picture_entry(p):
             f"{1e3 * p['t']:.3f} ms ({p['contact_force']:.3f} N). Along the axis (the mean over the cells within "
             f"0.3 a of it, in slices 0.1 a thick) the von Mises stress peaks at {p['vm_axis_max']:.3f} N/mm² = "
             f"{ratio:.2f} p0 (Hertz: {vm_ref:g} p0) at depth {p['vm_depth']:.2f} mm = {depth:.2f} a (Hertz: "
-            f"{depth_ref:g} a); its largest value in a cell, {p['vm_max']:.3f} N/mm², is {where} ({how}). " + verdict(p["contact_force"] > 0 and ok, p["contact_force"] > 0))
-    return {"key": "ball3d", "section": "hertz", "says": SAYS_PICTURE, "ours": text, "png": p["png"], "numbers": p}
+            f"{depth_ref:g} a); its largest value in a cell, {p['vm_max']:.3f} N/mm², is {where} ({how}). ")
+    return Entry("ball3d", text, Verdict.of(p["contact_force"] > 0 and ok, p["contact_force"] > 0), section="hertz",
+                 says=SAYS_PICTURE, png=p["png"], numbers=p)
 

@@ -4,7 +4,8 @@ import html
 import math
 
 from sdm_dolfinx.study.series import Series
-from sdm_dolfinx.study.text import html_table, jsonable, listing, verdict
+from sdm_dolfinx.study.entry import Entry, Verdict
+from sdm_dolfinx.study.text import html_table, jsonable, listing
 from sdm_dolfinx.study.runs import duration
 from sdm_dolfinx.paper.design import PAPER_RATE, PAPER_T, PAPER_TABLE2
 from sdm_dolfinx.paper.table2 import TOLERANCE, agreement
@@ -51,7 +52,7 @@ def rigid_shift(t2, runs_dir):
 
 
 def entry(study, t2, runs_dir):
-    """The report's Table 2 entry: ``{"key", "ours", "numbers", "html"}``."""
+    """The report's Table 2 :class:`~sdm_dolfinx.study.entry.Entry` (its statement is the paper's)."""
     main, gm = t2["getfem"] or t2["gmsh"], t2["gmsh"]
     dev, ok = agreement(main)
     v, shift = rigid_shift(t2, runs_dir)
@@ -70,14 +71,14 @@ def entry(study, t2, runs_dir):
             f"convention gives "
             f"{pe(gm, 'error_paper')} % (rate {rate(gm, 'paper')}). At t = 0.02 s exactly in our norm: "
             f"{pe(main, 'error_t002')} % (rate {rate(main, 't002')}) on the paper's meshes, "
-            f"{pe(gm, 'error_t002')} % (rate {rate(gm, 't002')}) on gmsh levels. " + verdict(ok, bool(dev)))
+            f"{pe(gm, 'error_t002')} % (rate {rate(gm, 't002')}) on gmsh levels. ")
     numbers = {"as_the_paper_program": _rows(t2, "error_paper"), "at_t_0.02": _rows(t2, "error_t002"),
                "at_t_0.02_paper_norm": _rows(t2, "error_t002_paper_norm"),
                "rates": {"paper": PAPER_RATE, **{f: t2[f]["rates"] for f in ("gmsh", "getfem") if t2[f]}},
                "reference": t2["gmsh"]["reference"], "deviation_rows_1_3": dev, "within_tolerance": ok,
                "tolerance": TOLERANCE, "reference_velocity_y": v, "rigid_shift_estimate": shift,
                "getfem_mesh_dir": t2["getfem_mesh_dir"]}
-    return {"key": "table2", "ours": text, "numbers": jsonable(numbers), "html": tables_html(t2, v)}
+    return Entry("table2", text, Verdict.of(ok, bool(dev)), numbers=jsonable(numbers), html=tables_html(t2, v))
 
 
 def _rows(t2, key):

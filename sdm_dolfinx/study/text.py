@@ -1,5 +1,5 @@
-"""Numbers in words and tables: percentages, lists, HTML tables, verdicts and JSON-safe values for
-the report's sentences and numbers.json."""
+"""Numbers in words and tables: percentages, lists, HTML tables and JSON-safe values for the report's
+sentences and numbers.json (a verdict is a value: :class:`sdm_dolfinx.study.entry.Verdict`)."""
 import html
 import math
 
@@ -25,11 +25,6 @@ def html_table(header, rows, markup_header=False):
     h = "".join(f"<th>{c if markup_header else html.escape(str(c))}</th>" for c in header)
     body = "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in r) + "</tr>" for r in rows)
     return f"<table><tr>{h}</tr>{body}</table>"
-
-
-def verdict(ok, partly=False):
-    """The sentence the report's summary reads (agrees, in part, does not agree)."""
-    return "Ours agrees." if ok else ("Ours agrees in part." if partly else "Ours does not agree.")
 
 
 def jsonable(d):

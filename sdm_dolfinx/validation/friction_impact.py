@@ -19,7 +19,8 @@ import numpy as np
 from sdm_dolfinx.validation.friction_rigid import discrete_mass
 from sdm_dolfinx.validation.friction_study import IMPACT_MU
 from sdm_dolfinx.study.series import Series
-from sdm_dolfinx.study.text import listing, pct, verdict
+from sdm_dolfinx.study.entry import Entry, Verdict
+from sdm_dolfinx.study.text import listing, pct
 from sdm_dolfinx.study.plotting import pyplot, save
 from sdm_dolfinx.io.xdmf_reader import read_xdmf
 
@@ -157,12 +158,13 @@ def fig_impact_stress(out, data):
     fig.tight_layout()
     png = save(fig, out / "friction_impact_stress_A.png")
     meas = {case: m for case, (_, m) in data.items()}
-    return {"key": "friction_impact_stress", "says": SAYS["friction_impact_stress"], "png": png,
-            "ours": _stress_text(meas), "numbers": meas}
+    text, verdict = _stress_text(meas)
+    return Entry("friction_impact_stress", text, verdict, says=SAYS["friction_impact_stress"], png=png, numbers=meas)
 
 
 def _stress_text(meas):
-    """The cone's check at every stored vertex and time, and the sliding case's impulse ratio."""
+    """The cone's check at every stored vertex and time, and the sliding case's impulse ratio:
+    (sentence, verdict)."""
     slide, stick = meas["sliding"], meas["sticking"]
     cone = all(m["cone_max_ratio"] <= 1 + CONE_RTOL for m in meas.values())
     on_cone = all(m["slip_off_cone"] <= CONE_RTOL for m in meas.values() if not math.isnan(m["slip_off_cone"]))
@@ -180,8 +182,8 @@ def _stress_text(meas):
             f"{slide['mu_slides_throughout_below']:.3f}), "
             f"Δvx = {slide['dvx']:.1f} mm/s against −μ J_N / m = {slide['dvx_sliding_rigid']:.1f} "
             f"({pct(slide['dvx'] / slide['dvx_sliding_rigid'] - 1, 2)}). The file's σ_N at A equals the time series' "
-            f"lambda_probe to {max(m['file_vs_timeseries_at_a'] for m in meas.values()):.1e} (relative to its peak). "
-            + verdict(ok, cone))
+            f"lambda_probe to {max(m['file_vs_timeseries_at_a'] for m in meas.values()):.1e} (relative to its peak). ",
+            Verdict.of(ok, cone))
 
 
 def fig_impact_zones(out, data):
@@ -208,12 +210,13 @@ def fig_impact_zones(out, data):
     fig.tight_layout()
     png = save(fig, out / "friction_impact_zones.png")
     meas = {case: m for case, (_, m) in data.items()}
-    return {"key": "friction_impact_zones", "says": SAYS["friction_impact_zones"], "png": png,
-            "ours": _zones_text(meas), "numbers": meas}
+    text, verdict = _zones_text(meas)
+    return Entry("friction_impact_zones", text, verdict, says=SAYS["friction_impact_zones"], png=png, numbers=meas)
 
 
 def _zones_text(meas):
-    """Stick fractions, where the sticking case slips, against rigid theory; the energy dissipated."""
+    """Stick fractions, where the sticking case slips, against rigid theory; the energy dissipated:
+    (sentence, verdict)."""
     slide, stick = meas["sliding"], meas["sticking"]
     ok = slide["stick_fraction"] == 0.0 and stick["stick_fraction"] >= 0.75
     rev = stick["a_tangential_positive_from"]
@@ -231,7 +234,7 @@ def _zones_text(meas):
             f"Friction "
             f"dissipates {listing(pct(m['dissipated'] / m['energy_initial'], 2) for m in meas.values())} of the "
             f"energy ({listing(meas)}). Criterion: the sliding case never sticks, the sticking case sticks at "
-            f"≥ 75 % of its vertex-steps. " + verdict(ok, stick["stick_fraction"] > slide["stick_fraction"]))
+            f"≥ 75 % of its vertex-steps. ", Verdict.of(ok, stick["stick_fraction"] > slide["stick_fraction"]))
 
 
 def impact_entries(fs, runs_dir, out):

@@ -1,8 +1,8 @@
 """The report's friction section (issue 17; not in the paper), part 1: the disc rolling and
 sliding down the incline, and the block sliding to a stop, against their rigid-body closed
 forms (:func:`sdm_dolfinx.problems.disc.incline_motion`, :func:`sdm_dolfinx.problems.block.stopping`).
-The oblique impact is :mod:`.friction_impact`. Each figure returns a report entry
-``{"key", "says", "png", "ours", "numbers"}`` (``says``: what the closed form says); rank 0 only.
+The oblique impact is :mod:`.friction_impact`. Each figure returns a report
+:class:`~sdm_dolfinx.study.entry.Entry` (its ``says``: what the closed form says); rank 0 only.
 
 What is measured, from the time series alone (P_x = e_x^T M Vbar, the column ``momentum_x``,
 which the midpoint scheme changes by exactly dt (m g sin theta + sum lam_T) per step; m = e^T M e
@@ -30,7 +30,8 @@ from sdm_dolfinx import compat, problems
 from sdm_dolfinx.method.discretisation import Discretisation
 from sdm_dolfinx.validation.friction_study import BLOCK_MU, INCLINE_MU, INCLINE_T, THETA, block_threshold
 from sdm_dolfinx.study.series import Series
-from sdm_dolfinx.study.text import html_table, listing, pct, verdict
+from sdm_dolfinx.study.entry import Entry, Verdict
+from sdm_dolfinx.study.text import html_table, listing, pct
 from sdm_dolfinx.study.plotting import COLOURS, pyplot, save
 from sdm_dolfinx.problems import block as block_problem, disc as disc_problem
 
@@ -191,12 +192,14 @@ def fig_incline(fs, runs_dir, out):
                  "P2/P1, midpoint, Coulomb")
     fig.tight_layout()
     png = save(fig, out / "friction_incline.png")
-    return {"key": "friction_incline", "says": SAYS["friction_incline"], "png": png,
-            "ours": _incline_text(meas), "html": _incline_table(meas), "numbers": meas}
+    text, verdict = _incline_text(meas)
+    return Entry("friction_incline", text, verdict, says=SAYS["friction_incline"], png=png,
+                 html=_incline_table(meas), numbers=meas)
 
 
 def _incline_text(meas):
-    """The incline's sentence: the errors at every level, the regimes, the oscillation and the slip."""
+    """The incline's sentence and verdict: the errors at every level, the regimes, the oscillation and
+    the slip."""
     roll, slide = meas["rolling"], meas["sliding"]
     r, sl = roll[max(roll)], slide[max(slide)]
     levels = ("levels " if len(roll) > 1 else "level ") + listing(str(lev) for lev in sorted(roll))
@@ -231,7 +234,7 @@ def _incline_text(meas):
             f"{sl['a_closed']:.1f} ({levels}: {err(slide)}), and A's slip accelerates at {sl['slip_acc']:.0f} "
             f"mm/s² against g (sin θ − 3 μ cos θ) = {sl['slip_acc_closed']:.0f} "
             f"({pct(sl['slip_acc'] / sl['slip_acc_closed'] - 1, 2)}). Tolerances: {pct(ROLL_TOL)} rolling, "
-            f"{pct(SLIDE_TOL)} sliding, at every level. " + verdict(roll_ok and slide_ok, roll_ok or slide_ok))
+            f"{pct(SLIDE_TOL)} sliding, at every level. ", Verdict.of(roll_ok and slide_ok, roll_ok or slide_ok))
 
 
 def _incline_table(meas):
@@ -319,6 +322,6 @@ def fig_block(fs, runs_dir, out):
         f"{1e3 * x['t_stop']:.2f} ms against {1e3 * x['t_stop_closed']:.2f} ms ({pct(x['stop_rel_error'], 2)}), then "
         f"within ±{max(map(abs, x['velocity_after_stop'])):.2g} mm/s of rest; normal force "
         f"{x['normal_force_range'][0]:.3f} to {x['normal_force_range'][1]:.3f} m g"
-        for law, x in meas.items()) + f". Tolerance on the stop time {pct(BLOCK_TOL)}. " + verdict(
-        ok, all(abs(x["stop_rel_error"]) <= 3 * BLOCK_TOL for x in meas.values()))
-    return {"key": "friction_block", "says": SAYS["friction_block"], "png": png, "ours": text, "numbers": meas}
+        for law, x in meas.items()) + f". Tolerance on the stop time {pct(BLOCK_TOL)}. "
+    verdict = Verdict.of(ok, all(abs(x["stop_rel_error"]) <= 3 * BLOCK_TOL for x in meas.values()))
+    return Entry("friction_block", text, verdict, says=SAYS["friction_block"], png=png, numbers=meas)

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from sdm_dolfinx.report import hertz_entry as hertz_report
+from sdm_dolfinx.study.entry import Verdict
 from sdm_dolfinx.problems import ball
 
 COMM = MPI.COMM_WORLD
@@ -89,10 +90,12 @@ def test_verdict_follows_the_finest_level():
         return {"level": level, "dt": dt, "a_over_h": 2.0 * level, "err_t_c": et, "err_F_max": ef,
                 "err_delta_max": 0.0, "rebound": 1.0, "energy_max_dev": 1e-3}
     coarse = row(1, 4e-5, 0.08, -0.03)
-    assert hertz_report.ours([coarse, row(3, 2e-5, 0.01, 0.0145)]).endswith("Ours agrees.")
-    assert hertz_report.ours([row(3, 4e-5, 0.01, 0.01), row(3, 2e-5, 0.06, 0.01)]).endswith("agrees in part.")
-    assert hertz_report.ours([coarse]).endswith("agrees in part.")
-    assert hertz_report.ours([row(2, 2e-5, 0.06, -0.07)]).endswith("does not agree.")
+    assert hertz_report.ours([coarse, row(3, 2e-5, 0.01, 0.0145)])[1] is Verdict.AGREES
+    assert hertz_report.ours([row(3, 4e-5, 0.01, 0.01), row(3, 2e-5, 0.06, 0.01)])[1] is Verdict.IN_PART
+    assert hertz_report.ours([coarse])[1] is Verdict.IN_PART
+    text, verdict = hertz_report.ours([row(2, 2e-5, 0.06, -0.07)])
+    assert verdict is Verdict.DISAGREES
+    assert "t_c is not within and F_max not within 5 % of Hertz" in text
 
 
 @pytest.mark.slow
