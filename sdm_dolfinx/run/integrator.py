@@ -26,6 +26,7 @@ import numpy as np
 
 from sdm_dolfinx.method import iterative as _iterative, step_matrix as _step_matrix
 from sdm_dolfinx.contact import friction as _friction
+from sdm_dolfinx.contact.context import StepContext
 from sdm_dolfinx import schemes
 from sdm_dolfinx.errors import StepError
 from sdm_dolfinx.method.errors import DiscretisationError
@@ -126,7 +127,8 @@ class Integrator:
         self.slip = None
         if self.contact != "exact":
             from sdm_dolfinx import contact as _contact  # lazily: a registry of its own
-            self.treatment = _contact.make(self.contact, self, dict(contact_options or {}))
+            context = StepContext(self.K, d, self.dt, self.block, self.factor_matrix)     # never the Integrator
+            self.treatment = _contact.make(self.contact, context, dict(contact_options or {}))
             self.solver = self.treatment.solver
         elif self.friction is None:
             if d.problem.mesh.topology.dim == 3:     # many more active vertices: see solvers.schur
