@@ -21,6 +21,7 @@ from sdm_dolfinx.method.discretisation import Discretisation
 from sdm_dolfinx.solvers import VIError
 from sdm_dolfinx.errors import StepError
 from sdm_dolfinx.run.integrator import Integrator
+from sdm_dolfinx.run.observe import Observer
 from sdm_dolfinx.mpiutil import atomic_write_text, json_text
 from sdm_dolfinx.run import restart as _restart
 from sdm_dolfinx.io import checkpoint
@@ -72,8 +73,8 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
         on_step: ``f(step, row)`` called after every step with the time-series row (plus
             ``linear_its_total``, the cumulative linear iterations); returning True requests
             a stop (as a signal would).
-        observe: ``f(n, t, U, V, integ)``, on every rank after row n (n = 0 too) of the time series:
-            the state to read (not change), for what the time series does not hold (field errors).
+        observe: ``f(state)`` on every rank after row n (n = 0 too) of the time series, with a read-only
+            :class:`~sdm_dolfinx.run.observe.State` (docs/api.md; ``f(n, t, U, V, integ)``: deprecated).
         folder_seen: ``{"run_id": ...}`` that :func:`sdm_dolfinx.io.folder.check_out` saw in
             ``out`` (None: no check); checked again once the folder is locked.
         constraint_tol: a constrained iterate below its bound by more than this (relative
@@ -105,7 +106,7 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
     try:
         loop = _Loop(problem, pair, scheme, dt, T, mass, vi_solver, linear, petsc_options, wall0, quadrature_degree,
                      law, method, kept)
-        loop.observe = observe
+        loop.observe = Observer(observe, loop.comm) if observe is not None else None     # or ObserveError
         signum = stop.agreed(loop.comm)
         if signum:
             raise Interrupted("interrupted during the set-up, before anything was written", signum)
@@ -221,7 +222,7 @@ class _Loop:
         if self.files is not None:
             self.files.row(row)
         if self.observe is not None:
-            self.observe(n, n * self.dt, self.U, self.V, integ)
+            self.observe(n, n * self.dt, self.U, self.V, self.lam, integ)
         return row
 
     def fields(self, n, lam):
