@@ -6,8 +6,9 @@ replace it by a nonlinear force lam(X) of the scheme's constrained iterate X, so
 
     K X = b + lam(X)              (K = alpha^2 M + A, constant, Dirichlet rows eliminated)
 
-``contact.make(name, integ, options)`` is called by the Integrator once K is built and returns
-a treatment with
+``contact.make(name, context, options)`` is called by the Integrator once K is built, with a
+:class:`~.context.StepContext` (``K``, ``discretisation``, ``dt``, ``block``, ``factor_matrix``:
+read-only, all a treatment may rely on; never the Integrator), and returns a treatment with
 
 * ``solver``: a step solver (``solve(b, X) -> {"its", "n_active"}``, ``lam`` the nodal contact
   force at the owned constrained dofs, >= 0 when it pushes, ``active``, ``total_linear_its``,
@@ -20,13 +21,14 @@ a treatment with
 * ``describe()``: the options and the parameters they gave (for run.json);
 * ``destroy()``.
 
-A treatment is one module with a factory ``make(integ, options)`` and one :func:`register`
+A treatment is one module with a factory ``make(context, options)`` and one :func:`register`
 line below: ``penalty`` (:mod:`.penalty`) and ``nitsche`` (:mod:`.nitsche`). Their options
 (:data:`OPTIONS`; None: the treatment's documented default) come from ``contact_options``.
 """
 import math
 
 from sdm_dolfinx.contact import nitsche, penalty
+from sdm_dolfinx.contact.context import StepContext
 
 #: the treatment the Integrator handles itself (the variational inequality)
 EXACT = "exact"
@@ -38,7 +40,8 @@ _FACTORIES = {}
 
 
 def register(name, factory):
-    """Make ``factory(integ, options) -> treatment`` the contact treatment ``name``."""
+    """Make ``factory(context, options) -> treatment`` the contact treatment ``name`` (``context``:
+    a :class:`~.context.StepContext`)."""
     if name == EXACT or name in _FACTORIES:
         raise ValueError(f"a contact treatment {name!r} exists already")
     _FACTORIES[name] = factory
@@ -75,12 +78,14 @@ def _number(v):
     return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
-def make(name, integ, options=None):
-    """The treatment ``name`` for the Integrator ``integ`` (its K, discretisation, alpha, dt,
-    factor_matrix); ``options`` a dict among :data:`OPTIONS` (None values: the defaults).
+def make(name, context, options=None):
+    """The treatment ``name`` for the step of ``context`` (a :class:`~.context.StepContext`: K,
+    discretisation, dt, block, factor_matrix); ``options`` a dict among :data:`OPTIONS` (None
+    values: the defaults).
 
     Raises:
         ValueError: what :func:`check` refuses (``"exact"`` included: the Integrator's own).
+        TypeError: ``context`` is not a StepContext (a treatment is never given the Integrator).
         DiscretisationError: the treatment does not apply to this problem (one line, why).
     """
     if name == EXACT:
@@ -88,8 +93,10 @@ def make(name, integ, options=None):
     bad = check(name, options)
     if bad:
         raise ValueError("; ".join(bad))
+    if not isinstance(context, StepContext):
+        raise TypeError(f"contact.make takes a StepContext, got {type(context).__name__}")
     options = {k: v for k, v in dict(options or {}).items() if v is not None}
-    return _FACTORIES[name](integ, options)
+    return _FACTORIES[name](context, options)
 
 
 register("penalty", penalty.make)

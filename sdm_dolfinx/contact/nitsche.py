@@ -100,10 +100,11 @@ def _degree(V):
 
 
 class Nitsche:
-    """Nitsche's contact term for one Integrator (see the module).
+    """Nitsche's contact term for one step matrix (see the module).
 
     Args:
-        integ: the Integrator (its K and discretisation).
+        context: the :class:`~sdm_dolfinx.contact.context.StepContext` (its K, discretisation
+            and factor_matrix).
         theta: 1, 0 or -1 (None: :data:`DEFAULT_THETA`).
         gamma0: > 0 (None: :data:`DEFAULT_GAMMA0`).
 
@@ -113,8 +114,8 @@ class Nitsche:
 
     name = "nitsche"
 
-    def __init__(self, integ, theta=None, gamma0=None):
-        d = integ.discretisation
+    def __init__(self, context, theta=None, gamma0=None):
+        d = context.discretisation
         p = d.problem
         self.discretisation, self.problem = d, p
         self.stress = getattr(p, "stress", None)
@@ -138,7 +139,7 @@ class Nitsche:
         self._compile()
         #: the dofs the boundary term reads and writes: (global indices on every rank, owned local ones)
         self.dofs = facet_cell_dofs(d, facets)
-        self.solver = NitscheNewton(integ.K, self, factor_matrix=getattr(integ, "factor_matrix", None))
+        self.solver = NitscheNewton(context.K, self, factor_matrix=context.factor_matrix)
 
     # ------------------------------------------------------------------ the terms
     def along(self, u):
@@ -260,6 +261,6 @@ class Nitsche:
             o.destroy()
 
 
-def make(integ, options):
+def make(context, options):
     """The registry's factory: ``options`` may hold ``nitsche_theta`` and ``nitsche_gamma0``."""
-    return Nitsche(integ, options.get("nitsche_theta"), options.get("nitsche_gamma0"))
+    return Nitsche(context, options.get("nitsche_theta"), options.get("nitsche_gamma0"))

@@ -65,10 +65,11 @@ def stiffness_scale(discretisation):
 
 
 class Penalty:
-    """The penalised contact for one Integrator (see the module).
+    """The penalised contact for one step matrix (see the module).
 
     Args:
-        integ: the Integrator (its K, discretisation, factor_matrix, block).
+        context: the :class:`~sdm_dolfinx.contact.context.StepContext` (its K, discretisation,
+            factor_matrix, block).
         penalty: the dimensionless factor of epsilon (None: :data:`DEFAULT_PENALTY`).
 
     Attributes:
@@ -79,16 +80,15 @@ class Penalty:
 
     name = "penalty"
 
-    def __init__(self, integ, penalty=None):
-        d = integ.discretisation
+    def __init__(self, context, penalty=None):
+        d = context.discretisation
         self.discretisation = d
         self.penalty = DEFAULT_PENALTY if penalty is None else float(penalty)
         self.epsilon = self.penalty * stiffness_scale(d)
         self.k = self.epsilon * np.asarray(d.cmeasure, dtype=float)
         self.cdofs, self.lb = d.cdofs, np.asarray(d.lb, dtype=float)
-        self.solver = PenaltyNewton(integ.K, d.cdofs, d.lb, self.k,
-                                    symmetric_positive=not getattr(integ, "block", False),
-                                    factor_matrix=getattr(integ, "factor_matrix", None))
+        self.solver = PenaltyNewton(context.K, d.cdofs, d.lb, self.k, symmetric_positive=not context.block,
+                                    factor_matrix=context.factor_matrix)
 
     def describe(self):
         """What run.json may record: the option and the parameter it gave."""
@@ -117,6 +117,6 @@ class Penalty:
         self.solver.destroy()
 
 
-def make(integ, options):
+def make(context, options):
     """The registry's factory: ``options`` may hold ``penalty``."""
-    return Penalty(integ, options.get("penalty"))
+    return Penalty(context, options.get("penalty"))

@@ -68,22 +68,25 @@ class RunFiles:
 
     Args:
         out: the folder (created if missing).
-        integ: the run's :class:`sdm_dolfinx.run.integrator.Integrator`.
-        series: its :class:`sdm_dolfinx.run.result.TimeSeries` (filled with the kept rows on
-            restart).
+        discretisation: the run's Discretisation.
+        series: its time series (``columns``, ``load_rows``: :class:`sdm_dolfinx.run.result.TimeSeries`;
+            filled with the kept rows on restart).
         info: the ``run.json`` dict (written now and by :meth:`update`).
         restart: ``None`` for a new run, else ``(first step, files)`` with ``files`` the
             checkpoint's record of them (:meth:`record`; None for a checkpoint of an older
             version).
         write_every: the fields are written every K steps.
+        block: V is the (U, V) block system's velocity in H^h (mass ``"consistent"``), else Vbar in W^h.
+        friction: the run has friction: :meth:`fields` takes the step's tangential multipliers and
+            slip set, written as the XDMF's friction fields.
 
     Raises:
         RunFileError: a file could not be written (nothing of the previous run is lost).
         checkpoint.CheckpointError: (restart) the kept files do not match the run.
     """
 
-    def __init__(self, out, integ, series, info, fingerprint, restart, write_every, dt):
-        discretisation = integ.discretisation
+    def __init__(self, out, discretisation, series, info, fingerprint, restart, write_every, dt, block=False,
+                 friction=False):
         self.comm, self.out, self.info, self.dt = discretisation.comm, Path(out), info, dt
         self.write_every = write_every or 10
         self.last_row = -1
@@ -105,9 +108,9 @@ class RunFiles:
         append = restart is not None
         self.csv = agree(comm, CSVWriter, csv, series.columns, comm, append, path=csv)
         xsteps = restart["solution"] if append else None
-        self.xdmf = agree(comm, XDMFWriter, out / "solution.xdmf", discretisation, integ, dt,
+        self.xdmf = agree(comm, XDMFWriter, out / "solution.xdmf", discretisation, dt, block, friction,
                           self.journals["solution.h5"], xsteps, path=out / "solution.h5")
-        self.state = agree(comm, StateWriter, out / "state.h5", discretisation, integ, fingerprint,
+        self.state = agree(comm, StateWriter, out / "state.h5", discretisation, block, fingerprint,
                            self.journals["state.h5"], not (append and restart["state"]), path=out / "state.h5")
         self.state_missing = append and not restart["state"]
 
@@ -165,9 +168,10 @@ class RunFiles:
         agree(self.comm, self.csv.write, row, path=self.out / "timeseries.csv")
         self.last_row = int(row["step"])
 
-    def fields(self, n, U, V, lam):
-        """Write the fields of step ``n`` to ``solution.xdmf`` and ``state.h5``."""
-        agree(self.comm, self.xdmf.write, U, V, lam, lam > 0, n, path=self.out / "solution.h5")
+    def fields(self, n, U, V, lam, lam_t=None, slipping=None):
+        """Write the fields of step ``n`` to ``solution.xdmf`` and ``state.h5`` (with friction, the
+        step's ``lam_t`` and ``slipping`` too: :meth:`XDMFWriter.write`)."""
+        agree(self.comm, self.xdmf.write, U, V, lam, lam > 0, n, lam_t, slipping, path=self.out / "solution.h5")
         agree(self.comm, self.state.write, U, V, n, n * self.dt, path=self.out / "state.h5")
 
     def state_write(self, U, V, n):

@@ -86,13 +86,14 @@ class StateWriter:
     ``step``; groups ``W`` and ``V_space`` hold ``dof_coordinates`` and ``block_size``.
 
     Args:
+        block: V is the (U, V) block system's velocity in H^h (mass ``"consistent"``), else Vbar in W^h.
         journal: the file's :class:`JournaledFile` (rank 0; None elsewhere).
         new: create the file (else continue it: it holds the rows up to the restart).
     """
 
-    def __init__(self, path, discretisation, integrator, fingerprint, journal=None, new=True):
+    def __init__(self, path, discretisation, block, fingerprint, journal=None, new=True):
         self.comm, self.path, self.journal = discretisation.comm, Path(path), journal
-        vspace = discretisation.H if integrator.block else discretisation.W
+        vspace = discretisation.H if block else discretisation.W
         spaces = (("W", discretisation.W), ("V_space", vspace))
         coords = {name: gather_blocks(sp, sp.tabulate_dof_coordinates(), self.comm) for name, sp in spaces}
         bs = {name: sp.dofmap.index_map_bs for name, sp in spaces}
@@ -121,7 +122,7 @@ class StateWriter:
             h5.create_dataset("V", shape=(0, nv), maxshape=(None, nv), chunks=(1, max(nv, 1)), dtype="f8")
             h5.create_dataset("t", shape=(0,), maxshape=(None,), dtype="f8")
             h5.create_dataset("step", shape=(0,), maxshape=(None,), dtype="i8")
-            h5.attrs["V_is"] = "V in H^h (block system)" if integrator.block else "Vbar in W^h"
+            h5.attrs["V_is"] = "V in H^h (block system)" if block else "Vbar in W^h"
             for k, v in fingerprint.items():
                 h5.attrs["mesh_" + k] = v
 

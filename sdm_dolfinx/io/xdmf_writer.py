@@ -73,12 +73,15 @@ class XDMFWriter:
     the whole XML atomically (it lists only steps whose data is complete).
 
     Args:
+        block: V is the (U, V) block system's velocity in H^h (mass ``"consistent"``), else Vbar in W^h.
+        friction: write the friction fields ``tangential_stress`` and ``contact_status`` (then
+            :meth:`write` takes the step's ``lam_t`` and ``slipping``).
         journal: the HDF5 file's :class:`JournaledFile` (rank 0; None elsewhere).
         steps: None for new files; else the steps already in the HDF5 file (a restart).
     """
 
-    def __init__(self, path, discretisation, integrator, dt, journal=None, steps=None):
-        self.discretisation, self.integ, self.dt = discretisation, integrator, dt
+    def __init__(self, path, discretisation, dt, block=False, friction=False, journal=None, steps=None):
+        self.discretisation, self.dt, self.block = discretisation, dt, bool(block)
         d = discretisation
         msh = d.problem.mesh
         self.path, self.comm, self.journal = Path(path), msh.comm, journal
@@ -88,7 +91,7 @@ class XDMFWriter:
         self.vector = bool(d.problem.shape)
         self.uW = fem.Function(d.W)
         self.vH = fem.Function(d.H) if d.H is not None else None
-        self.vW = fem.Function(d.W) if not integrator.block else None
+        self.vW = fem.Function(d.W) if not self.block else None
         self._vH_vec = d.B.createVecLeft() if self.vH is not None and self.vW is not None else None
         self.s1, self.a1 = fem.Function(d.Q1), fem.Function(d.Q1)
         # name -> (source Function, its Lagrange degree: 0 = P0 (written per cell), None = other)
@@ -97,7 +100,7 @@ class XDMFWriter:
         src = {"displacement": (self.uW, wdeg), "velocity": vel, "contact_stress": (self.s1, 1), "active": (self.a1, 1)}
         if self.vH is not None and self.vW is not None:
             src["Vbar_W"] = (self.vW, wdeg)
-        self.friction = integrator.friction is not None
+        self.friction = bool(friction)
         if self.friction:                           # lam_T / m_i and 0 free, 1 stick, 2 slip
             src["tangential_stress"], src["contact_status"] = (fem.Function(d.Q1), 1), (fem.Function(d.Q1), 1)
         self.FIELDS = tuple(n for n in ("displacement", "velocity", "Vbar_W", "contact_stress", "active",
@@ -150,11 +153,11 @@ class XDMFWriter:
         key = time_key(n * self.dt)[1]
         return [f"Function/{name}/{key}" for name in self.FIELDS]
 
-    def _fill(self, U, V, lam, active):
+    def _fill(self, U, V, lam, active, lam_t, slipping):
         """The source functions of the fields from the step's vectors (collective)."""
         d = self.discretisation
         self.uW.x.array[:len(U.array)] = U.array
-        if self.integ.block:
+        if self.block:
             self.vH.x.array[:len(V.array)] = V.array
         else:
             self.vW.x.array[:len(V.array)] = V.array
@@ -166,9 +169,9 @@ class XDMFWriter:
                 f.x.scatter_forward()
         measure = np.where(d.cmeasure > 0, d.cmeasure, 1.0)
         vertex = [(self.s1, lam / measure), (self.a1, active.astype(float))]
-        if self.friction:
-            vertex += [(self.src["tangential_stress"], self.integ.lam_t / measure),
-                       (self.src["contact_status"], self.integ.contact_status(active))]
+        if self.friction:                           # 0 not in contact, 1 sticking, 2 slipping
+            status = np.where(active, np.where(np.asarray(slipping, dtype=bool), 2.0, 1.0), 0.0)
+            vertex += [(self.src["tangential_stress"], lam_t / measure), (self.src["contact_status"], status)]
         for f, vals in vertex:
             f.x.array[:] = 0.0
             f.x.array[d.q1_of_c] = np.asarray(vals)[d.c_vertex]     # constrain="nodes": the vertex dofs
@@ -198,10 +201,13 @@ class XDMFWriter:
         order = self.cell_map if name in self.cell_fields else self.map
         return vals if order is None else vals[order]
 
-    def write(self, U, V, lam, active, n):
+    def write(self, U, V, lam, active, n, lam_t=None, slipping=None):
         """Write the fields of step ``n`` (collective); the contact stress is each constrained
-        vertex's multiplier divided by its lumped measure."""
-        self._fill(U, V, lam, active)
+        vertex's multiplier divided by its lumped measure. With friction, ``lam_t`` (the tangential
+        multipliers' sizes) and ``slipping`` (the slip set) at the owned constrained vertices."""
+        if (lam_t is not None, slipping is not None) != (self.friction, self.friction):
+            raise TypeError("XDMFWriter.write takes lam_t and slipping exactly when it writes the friction fields")
+        self._fill(U, V, lam, active, lam_t, slipping)
         data = {name: self._values(name) for name in self.FIELDS}
         if self.comm.rank == 0:
             names = self._datasets(n)

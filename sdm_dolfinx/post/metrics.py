@@ -251,9 +251,9 @@ def _scalar(v):
 
 # ----------------------------------------------------------------------------- field errors (observe)
 class FieldErrors:
-    """``observe(n, t, U, V, integ)`` for :func:`~sdm_dolfinx.run.simulate`: per recorded state the
-    L^2 and H^1 norms of U^n - I u(t_n) and of I u(t_n), and the gap (collective; every rank
-    holds the rows).
+    """``observe(state)`` for :func:`~sdm_dolfinx.run.simulate` (``state``: a read-only
+    :class:`~sdm_dolfinx.run.observe.State`): per recorded state the L^2 and H^1 norms of
+    U^n - I u(t_n) and of I u(t_n), and the gap (collective; every rank holds the rows).
 
     Args:
         exact: an ExactSolution (``displacement(x, t)``: x of shape (3, n) -> (n,) for a scalar
@@ -271,8 +271,7 @@ class FieldErrors:
         self.rows, self._forms = [], None
         self.seconds = 0.0          # the time spent here (not the method's cost)
 
-    def _setup(self, integ):
-        d = integ.discretisation
+    def _setup(self, d):
         self.comm, self.uh = d.comm, fem.Function(d.W)
         self.component = d.problem.constraint_component or 0
         space = d.W
@@ -295,21 +294,22 @@ class FieldErrors:
         out[self.component] = v.reshape(-1)
         return out
 
-    def __call__(self, n, t, U, V, integ):
+    def __call__(self, state):
         t0 = time.perf_counter()
         try:
-            self._record(t, U, integ)
+            self._record(state)
         finally:
             self.seconds += time.perf_counter() - t0
 
-    def _record(self, t, U, integ):
+    def _record(self, state):
+        t, U = state.t, state.U
         if self._forms is None:
-            self._setup(integ)
-        gap = min(integ.vertex_gap(U), integ.boundary_gap(U))
+            self._setup(state.discretisation)
+        gap = min(state.vertex_gap(), state.boundary_gap())
         if self.exact is None:
             self.rows.append((t, math.nan, math.nan, math.nan, math.nan, gap))
             return
-        self.uh.x.array[:len(U.array)] = U.array
+        self.uh.x.array[:len(U)] = U
         self.uh.x.scatter_forward()
         self.ue.interpolate(lambda x: self._exact_values(x, t))
         if self.raise_degree:

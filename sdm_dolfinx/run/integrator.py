@@ -24,8 +24,9 @@ from mpi4py import MPI
 
 import numpy as np
 
-from sdm_dolfinx.method import iterative as _iterative, step_matrix as _step_matrix
+from sdm_dolfinx.method import gaps as _gaps, iterative as _iterative, step_matrix as _step_matrix
 from sdm_dolfinx.contact import friction as _friction
+from sdm_dolfinx.contact.context import StepContext
 from sdm_dolfinx import schemes
 from sdm_dolfinx.errors import StepError
 from sdm_dolfinx.method.errors import DiscretisationError
@@ -126,7 +127,8 @@ class Integrator:
         self.slip = None
         if self.contact != "exact":
             from sdm_dolfinx import contact as _contact  # lazily: a registry of its own
-            self.treatment = _contact.make(self.contact, self, dict(contact_options or {}))
+            context = StepContext(self.K, d, self.dt, self.block, self.factor_matrix)     # never the Integrator
+            self.treatment = _contact.make(self.contact, context, dict(contact_options or {}))
             self.solver = self.treatment.solver
         elif self.friction is None:
             if d.problem.mesh.topology.dim == 3:     # many more active vertices: see solvers.schur
@@ -282,13 +284,11 @@ class Integrator:
         lam_t = self.solver.lam_t
         return lam_t if lam_t.ndim == 1 else np.linalg.norm(lam_t, axis=1)
 
-    def contact_status(self, active):
-        """Per owned constrained vertex, given which are in contact (``active``): 0 not in contact,
-        1 in contact and sticking (or without friction), 2 in contact and slipping (the last step's
-        slip set)."""
-        active = np.asarray(active, dtype=bool)
-        slip = np.asarray(self.solver.slip, dtype=bool) if self.friction is not None else np.zeros_like(active)
-        return np.where(active, np.where(slip, 2.0, 1.0), 0.0)
+    @property
+    def slipping(self):
+        """Which owned constrained vertices slipped in the last step (the frictional step solver's
+        slip set; None without friction)."""
+        return None if self.friction is None else np.asarray(self.solver.slip, dtype=bool)
 
     def initial_velocity(self, V):
         """The velocity unknown of this formulation from Vbar0 in W^h: Vbar0 itself, or (block
@@ -301,23 +301,12 @@ class Integrator:
 
     def boundary_gap(self, U):
         """min over every dof of W^h on the constrained boundary (P2 mid-edge nodes included) of
-        U_c - bound, reduced over the ranks (+inf without such dofs)."""
-        d = self.discretisation
-        return d.comm.allreduce(float(np.min(U.array[d.bdofs] - d.blb, initial=np.inf)), op=MPI.MIN)
+        U_c - bound, reduced over the ranks (+inf without such dofs; :mod:`~sdm_dolfinx.method.gaps`)."""
+        return _gaps.boundary_gap(self.discretisation, U.array_r)
 
     def vertex_gap(self, U):
         """min over the constrained vertices of U_c - bound, reduced over the ranks."""
-        d = self.discretisation
-        return d.comm.allreduce(float(np.min(U.array[d.cdofs] - d.lb, initial=np.inf)), op=MPI.MIN)
-
-    def boundary_gap_where(self, U):
-        """The coordinates (gdim,) of the dof where :meth:`boundary_gap` is reached (collective)."""
-        d = self.discretisation
-        gap = U.array[d.bdofs] - d.blb
-        k = int(np.argmin(gap)) if gap.size else -1
-        _, owner = d.comm.allreduce((float(gap[k]) if k >= 0 else np.inf, d.comm.rank), op=MPI.MINLOC)
-        x = d.comm.bcast(d.bx[:, k] if d.comm.rank == owner else None, root=owner)
-        return x[:d.problem.mesh.geometry.dim]
+        return _gaps.vertex_gap(self.discretisation, U.array_r)
 
     @property
     def active(self):

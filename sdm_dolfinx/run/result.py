@@ -1,12 +1,14 @@
 """What a run returns (:class:`Result`) and the time series it records (:class:`TimeSeries`)."""
 import warnings
 from dataclasses import dataclass, field
+from typing import Protocol
 
 from mpi4py import MPI
 
 import numpy as np
 
 from sdm_dolfinx.errors import StepError
+from sdm_dolfinx.method import gaps
 #: the columns of every run's time series; a Problem adds its ``extra_columns``
 BASE_COLUMNS = ("step", "t", "energy", "kinetic", "potential", "u_probe", "lambda_probe", "n_active",
                 "newton_its")
@@ -38,18 +40,43 @@ def num_steps(T, dt):
     return int(np.floor(T / dt + 1e-9))
 
 
+class Formulation(Protocol):
+    """What the time series reads of the run's formulation (the Integrator is one): the discrete
+    energy and momentum of the state, collective, changing nothing."""
+
+    def energies(self, U, V, time=None):
+        """(kinetic, potential) of the state, the load taken at ``time``."""
+
+    def contact_energy(self, U):
+        """The energy stored in the contact treatment at U (0.0 for the exact contact)."""
+
+    def momentum(self, V, component):
+        """The discrete momentum along ``component``."""
+
+    def load(self, t=None):
+        """The load vector L at time ``t``."""
+
+
 class TimeSeries:
     """The scalar history of a run: one row per step (row 0 = the initial state).
 
     Every value is reduced over the ranks (identical on every rank).
+
+    Args:
+        formulation: the energies and momentum of the state (:class:`Formulation`).
+        discretisation: the run's Discretisation (the gaps, the constrained boundary).
+        friction: the run has friction (the :data:`FRICTION_COLUMNS`).
+        contact_energy: the contact stores energy (a treatment other than ``exact``: the
+            :data:`CONTACT_ENERGY` column).
     """
 
-    def __init__(self, integ, problem, probe, cprobe, nsteps):
-        self.integ, self.problem, self.probe, self.cprobe = integ, problem, probe, cprobe
-        d = integ.discretisation
+    def __init__(self, formulation, discretisation, problem, probe, cprobe, nsteps, friction=False,
+                 contact_energy=False):
+        self.formulation, self.problem, self.probe, self.cprobe = formulation, problem, probe, cprobe
+        self.discretisation = d = discretisation
         boundary = (BOUNDARY_GAP,) if d.num_boundary_dofs else ()
-        friction = FRICTION_COLUMNS if integ.friction is not None else ()
-        contact = (CONTACT_ENERGY,) if getattr(integ, "treatment", None) is not None else ()
+        friction = FRICTION_COLUMNS if friction else ()
+        contact = (CONTACT_ENERGY,) if contact_energy else ()
         self.columns = BASE_COLUMNS + contact + tuple(problem.extra_columns) + friction + boundary
         self.data = {c: np.zeros(nsteps + 1) for c in self.columns}
         self.comm = problem.mesh.comm
@@ -60,13 +87,14 @@ class TimeSeries:
             self.boundary_tol = BOUNDARY_GAP_TOL * float(np.linalg.norm(hi - lo))
         self.warned = False
 
-    def record(self, n, t, U, V, lam, its, n_active, step=None):
+    def record(self, n, t, U, V, lam, its, n_active, step=None, *, linear_its_total, slip=None):
         """Compute row ``n`` (time ``t``) from the state and the step solver's ``step`` info (None
         for row 0); returns it as a dict (with ``linear_its_total``, the cumulative linear
-        iterations, for callbacks)."""
-        integ, comm = self.integ, self.comm
-        kin, pot = integ.energies(U, V, t)
-        stored = integ.contact_energy(U) if CONTACT_ENERGY in self.columns else 0.0
+        iterations, for callbacks). ``slip``: the step's slip at the owned constrained vertices
+        (friction)."""
+        f, comm = self.formulation, self.comm
+        kin, pot = f.energies(U, V, t)
+        stored = f.contact_energy(U) if CONTACT_ENERGY in self.columns else 0.0
         row = {"step": n, "t": t, "energy": kin + pot + stored, "kinetic": kin, "potential": pot,
                "u_probe": self.probe(U), "lambda_probe": self.cprobe(lam), "n_active": n_active,
                "newton_its": its}
@@ -75,28 +103,28 @@ class TimeSeries:
         if "contact_force" in self.columns:
             row["contact_force"] = comm.allreduce(float(np.sum(lam)), op=MPI.SUM)
         if "momentum_y" in self.columns:
-            row["momentum_y"] = integ.momentum(V, self.problem.momentum_component)
+            row["momentum_y"] = f.momentum(V, self.problem.momentum_component)
         if "momentum_x" in self.columns:
-            row["momentum_x"] = integ.momentum(V, 0)
+            row["momentum_x"] = f.momentum(V, 0)
         if "tangential_force" in self.columns:
-            self._friction_row(row, n, step or {})
+            self._friction_row(row, n, step or {}, slip)
         if "elastic" in self.columns:            # 1/2 U^T A U = potential + U^T L
-            row["elastic"] = pot + U.dot(integ.load(t))
+            row["elastic"] = pot + U.dot(f.load(t))
         if BOUNDARY_GAP in self.columns:
-            row[BOUNDARY_GAP] = integ.boundary_gap(U)
+            row[BOUNDARY_GAP] = gaps.boundary_gap(self.discretisation, U.array_r)
             self._warn(n, t, U, row[BOUNDARY_GAP])
-        row["linear_its_total"] = integ.linear_its
+        row["linear_its_total"] = linear_its_total
         if not np.isfinite(row["energy"]):
             raise StepError(f"step {n} (t = {t:.6g}): the energy is not finite ({row['energy']})")
         for c in self.columns:
             self.data[c][n] = row[c]
         return row
 
-    def _friction_row(self, row, n, step):
+    def _friction_row(self, row, n, step, slip):
         """The friction columns of row ``n`` (0 in row 0; ``dissipated`` accumulates)."""
         before = self.data["dissipated"][n - 1] if n > 0 else 0.0
         row.update(tangential_force=step.get("tangential_force", 0.0),
-                   slip_probe=self.cprobe.at(self.integ.slip) if step else 0.0,
+                   slip_probe=self.cprobe.at(slip) if step else 0.0,
                    dissipated=before - step.get("friction_work", 0.0),
                    n_stick=step.get("n_stick", 0), n_slip=step.get("n_slip", 0))
 
@@ -105,11 +133,11 @@ class TimeSeries:
         below the bound between the constrained vertices by more than ``boundary_tol``."""
         if self.warned:
             return
-        vertex = self.integ.vertex_gap(U)
+        vertex = gaps.vertex_gap(self.discretisation, U.array_r)
         if gap >= min(vertex, 0.0) - self.boundary_tol:
             return
         self.warned = True
-        x = self.integ.boundary_gap_where(U)
+        x = gaps.boundary_gap_where(self.discretisation, U.array_r)
         if self.comm.rank == 0:
             where = ", ".join(f"{c:.6g}" for c in x)
             # warn_explicit with no source file: one line ("sdm_dolfinx:0: BoundaryGapWarning: ...")

@@ -21,6 +21,7 @@ from sdm_dolfinx.method.discretisation import Discretisation
 from sdm_dolfinx.solvers import VIError
 from sdm_dolfinx.errors import StepError
 from sdm_dolfinx.run.integrator import Integrator
+from sdm_dolfinx.run.observe import Observer
 from sdm_dolfinx.mpiutil import atomic_write_text, json_text
 from sdm_dolfinx.run import restart as _restart
 from sdm_dolfinx.io import checkpoint
@@ -72,8 +73,8 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
         on_step: ``f(step, row)`` called after every step with the time-series row (plus
             ``linear_its_total``, the cumulative linear iterations); returning True requests
             a stop (as a signal would).
-        observe: ``f(n, t, U, V, integ)``, on every rank after row n (n = 0 too) of the time series:
-            the state to read (not change), for what the time series does not hold (field errors).
+        observe: ``f(state)`` on every rank after row n (n = 0 too) of the time series, with a read-only
+            :class:`~sdm_dolfinx.run.observe.State` (docs/api.md; ``f(n, t, U, V, integ)``: deprecated).
         folder_seen: ``{"run_id": ...}`` that :func:`sdm_dolfinx.io.folder.check_out` saw in
             ``out`` (None: no check); checked again once the folder is locked.
         constraint_tol: a constrained iterate below its bound by more than this (relative
@@ -105,7 +106,7 @@ def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=Non
     try:
         loop = _Loop(problem, pair, scheme, dt, T, mass, vi_solver, linear, petsc_options, wall0, quadrature_degree,
                      law, method, kept)
-        loop.observe = observe
+        loop.observe = Observer(observe, loop.comm) if observe is not None else None     # or ObserveError
         signum = stop.agreed(loop.comm)
         if signum:
             raise Interrupted("interrupted during the set-up, before anything was written", signum)
@@ -159,7 +160,9 @@ class _Loop:
         self.U, self.V = U, self.integ.initial_velocity(V)
         self.cprobe = ConstraintProbe(d, problem.probe)
         probe = PointProbe(d.W, problem.probe, problem.constraint_component)
-        self.series = TimeSeries(self.integ, problem, probe, self.cprobe, self.nsteps)
+        integ = self.integ
+        self.series = TimeSeries(integ, d, problem, probe, self.cprobe, self.nsteps,
+                                 friction=integ.friction is not None, contact_energy=integ.treatment is not None)
         self.gap_imposed, self.gap_end = np.zeros(self.nsteps), np.zeros(self.nsteps)
         self.lam = np.zeros(len(d.cdofs))
         self.fingerprint = checkpoint.mesh_fingerprint(problem.mesh)
@@ -205,19 +208,28 @@ class _Loop:
         self.info["run_id"] = self.run_id
         if out is not None:
             try:
-                self.files = RunFiles(out, integ, self.series, self.info, self.fingerprint,
-                                      (self.first, outputs) if restart else None, write_every, self.dt)
+                self.files = RunFiles(out, d, self.series, self.info, self.fingerprint,
+                                      (self.first, outputs) if restart else None, write_every, self.dt,
+                                      block=integ.block, friction=integ.friction is not None)
             except RunFileError as e:
                 self._say_failed(e)
                 raise
 
     def record(self, n, its, n_active, step=None):
-        row = self.series.record(n, n * self.dt, self.U, self.V, self.lam, its, n_active, step)
+        integ = self.integ
+        row = self.series.record(n, n * self.dt, self.U, self.V, self.lam, its, n_active, step,
+                                 linear_its_total=integ.linear_its, slip=integ.slip)
         if self.files is not None:
             self.files.row(row)
         if self.observe is not None:
-            self.observe(n, n * self.dt, self.U, self.V, self.integ)
+            self.observe(n, n * self.dt, self.U, self.V, self.lam, integ)
         return row
+
+    def fields(self, n, lam):
+        """Write the fields of step ``n`` (the state's, with the contact forces ``lam``)."""
+        integ = self.integ
+        self.files.fields(n, self.U, self.V, lam, integ.lam_t if integ.friction is not None else None,
+                          integ.slipping)
 
     def run(self, stop, progress, on_step, checkpoint_every, constraint_tol):
         """Steps first..nsteps; a failed step leaves the files at the last good step."""
@@ -228,7 +240,7 @@ class _Loop:
             if not self.restarted:
                 self.record(0, 0, 0)
                 if files is not None:
-                    files.fields(0, self.U, self.V, self.lam)
+                    self.fields(0, self.lam)
             elif files is not None and files.state_missing:
                 files.state_write(self.U, self.V, self.first)  # a new state.h5 starts here
             signum = stop.agreed(self.comm)
@@ -268,7 +280,7 @@ class _Loop:
                             f"{-self.gap_imposed[n]:.3e} on the constrained iterate")
         row = self.record(n + 1, info["its"], info["n_active"], info)
         if self.files is not None and self.files.due(n + 1, self.nsteps):
-            self.files.fields(n + 1, self.U, self.V, self.lam)
+            self.fields(n + 1, self.lam)
         return row
 
     def checkpoint(self, n):
@@ -303,7 +315,7 @@ class _Loop:
         try:
             if saved is not None and n > self.first and n % self.files.write_every:
                 self.U.array[:], self.V.array[:] = saved[0], saved[1]
-                self.files.fields(n, self.U, self.V, saved[2])
+                self.fields(n, saved[2])
             self.files.update(last_good_step=n)
         except RunFileError as e:           # the step's error is the one to report
             self._say_failed(e, last_good_step=self.files.last_row, error=str(error))

@@ -131,14 +131,14 @@ class PressureAtPeak:
         self.best, self.t = -1.0, None
         self.r = self.lam = self.area = np.zeros(0)
 
-    def __call__(self, n, t, U, V, integ):
-        if n == 0:
+    def __call__(self, state):
+        if state.n == 0:
             return
-        lam = np.asarray(integ.lam)
-        d = integ.discretisation
+        lam = np.asarray(state.lam)
+        d = state.discretisation
         F = d.comm.allreduce(float(np.sum(lam)), op=MPI.SUM)
         if F > self.best:
-            self.best, self.t = F, t
+            self.best, self.t = F, state.t
             self.r, self.lam, self.area = np.hypot(d.cx[0], d.cx[1]), lam.copy(), np.asarray(d.cmeasure).copy()
 
     def result(self, comm):

@@ -14,6 +14,7 @@ from dolfinx import fem, mesh as dmesh
 from sdm_dolfinx import compat
 from sdm_dolfinx.compare import table as ct
 from sdm_dolfinx.post import metrics as cm
+from sdm_dolfinx.run.observe import State
 
 COMM = MPI.COMM_WORLD
 
@@ -101,10 +102,23 @@ def test_series_metrics_of_the_exact_series():
 
 
 # ----------------------------------------------------------------------------- field errors
-def _fake_integ(V, shape=(), component=None):
+class _GapState(State):
+    """A State whose gaps are given (-0.25 at the vertices, none on the boundary)."""
+
+    def vertex_gap(self):
+        return -0.25
+
+    def boundary_gap(self):
+        return np.inf
+
+
+def _state(u, t, shape=(), component=None):
+    """The observed State of the Function ``u`` at time ``t`` (a Discretisation with what
+    FieldErrors reads)."""
+    V = u.function_space
     problem = SimpleNamespace(mesh=V.mesh, shape=shape, constraint_component=component)
     d = SimpleNamespace(W=V, comm=V.mesh.comm, problem=problem)
-    return SimpleNamespace(discretisation=d, vertex_gap=lambda U: -0.25, boundary_gap=lambda U: np.inf)
+    return _GapState(0, t, compat.petsc_vec(u).array_r, None, np.zeros(0), d)
 
 
 class _SineExact:
@@ -120,14 +134,14 @@ def _observe(N, degree, raise_degree, t_state, t_exact):
     u = fem.Function(V)
     u.interpolate(lambda x: _SineExact().displacement(x, t_state))
     obs = cm.FieldErrors(_SineExact(), raise_degree)
-    obs(0, t_exact, compat.petsc_vec(u), None, _fake_integ(V))
+    obs(_state(u, t_exact))
     return obs.table()
 
 
 def test_field_errors_of_the_interpolant():
     """GetFEM's convention (the error against the interpolant in W^h): the interpolant itself has zero
     error; a state at t + d has the error |cos(t + d) - cos t| ||sin(pi x)|| = |...| / sqrt(2); the norm
-    columns are the interpolant's; the gap is the integrator's."""
+    columns are the interpolant's; the gap is the state's."""
     r = _observe(64, 1, 0, 0.3, 0.3)
     assert r["err_L2"][0] < 1e-14 and r["err_H1"][0] < 1e-13 and r["gap"][0] == -0.25
     assert r["norm_L2"][0] == pytest.approx(math.cos(0.3) / math.sqrt(2), rel=1e-3)
@@ -161,7 +175,7 @@ def test_field_errors_of_the_rods_kinked_solution_fall_at_the_rates_of_a_kink():
         u.interpolate(lambda x: RodExact().displacement(x, 1 / 3))
         obs, gl = cm.FieldErrors(RodExact(), 2), cm.FieldErrors(RodExact())
         for o in (obs, gl):
-            o(0, 1 / 3, compat.petsc_vec(u), None, _fake_integ(V))
+            o(_state(u, 1 / 3))
         assert gl.table()["err_H1"][0] < 1e-14
         errs.append((obs.table()["err_L2"][0], obs.table()["err_H1"][0]))
     h = 1.0 / np.array(Ns)
@@ -178,7 +192,7 @@ def test_field_errors_of_a_vector_field_put_a_scalar_exact_in_the_constrained_co
     u = fem.Function(V)
     u.interpolate(lambda x: np.vstack([0 * x[0], x[0] * x[1]]))
     obs = cm.FieldErrors(exact)
-    obs(0, 0.0, compat.petsc_vec(u), None, _fake_integ(V, (2,), 1))
+    obs(_state(u, 0.0, (2,), 1))
     r = obs.table()
     assert r["err_H1"][0] < 1e-13
     assert r["norm_L2"][0] == pytest.approx(1.0 / 3.0, rel=1e-12)

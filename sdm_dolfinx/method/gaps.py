@@ -1,0 +1,32 @@
+"""The gap of a state to the bound: min of u_c - bound over the constrained vertices or over every
+dof of the constrained boundary (collective), from the Discretisation alone.
+
+The Integrator, the time series and the observers' :class:`~sdm_dolfinx.run.observe.State` all
+measure it here. ``u`` is the owned part of a W^h vector as an array (``U.array_r``).
+"""
+from mpi4py import MPI
+
+import numpy as np
+
+
+def vertex_gap(discretisation, u):
+    """min over the constrained vertices of u_c - bound, reduced over the ranks (+inf without any)."""
+    d = discretisation
+    return d.comm.allreduce(float(np.min(u[d.cdofs] - d.lb, initial=np.inf)), op=MPI.MIN)
+
+
+def boundary_gap(discretisation, u):
+    """min over every dof of W^h on the constrained boundary (P2 mid-edge nodes included) of
+    u_c - bound, reduced over the ranks (+inf without such dofs)."""
+    d = discretisation
+    return d.comm.allreduce(float(np.min(u[d.bdofs] - d.blb, initial=np.inf)), op=MPI.MIN)
+
+
+def boundary_gap_where(discretisation, u):
+    """The coordinates (gdim,) of the dof where :func:`boundary_gap` is reached (collective)."""
+    d = discretisation
+    gap = u[d.bdofs] - d.blb
+    k = int(np.argmin(gap)) if gap.size else -1
+    _, owner = d.comm.allreduce((float(gap[k]) if k >= 0 else np.inf, d.comm.rank), op=MPI.MINLOC)
+    x = d.comm.bcast(d.bx[:, k] if d.comm.rank == owner else None, root=owner)
+    return x[:d.problem.mesh.geometry.dim]
