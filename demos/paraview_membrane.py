@@ -14,7 +14,7 @@ with the vertices in contact as red spheres, at any time step of the animation t
 
 dolfinx's XDMF stores each field as its own grid, which ParaView shows as four overlapping
 blocks, one array each; the script first writes ``solution_paraview.xdmf`` next to it (all
-fields on one grid per time step, same HDF5 data; ``python -m sdm_dolfinx.render DIR
+fields on one grid per time step, same HDF5 data; ``python -m sdm_dolfinx render DIR
 --merge`` does the same) and opens that. The displacement is exaggerated 10 times
 (``--scale``): the membrane hangs 0.02 above a unit square.
 """
