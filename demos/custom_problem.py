@@ -4,7 +4,7 @@ This demo runs a problem that is not in the paper, without touching the package:
 problem file ``demos/bar_problem.py`` declares it (a :class:`sdm_dolfinx.problems.Problem`
 is plain data: a mesh, the forms a and l, initial state, the constrained vertices and their
 bounds, built in about forty lines, plus its parameters declared once), and
-``sdm_dolfinx.run.launch`` runs it like the membrane or the disc; so does the command line,
+``sdm_dolfinx.simulate`` runs it like the membrane or the disc; so does the command line,
 ``python -m sdm_dolfinx run --problem-file demos/bar_problem.py``.
 
 The problem: a straight elastic bar, length L and height H, moves with velocity v toward
@@ -52,7 +52,7 @@ from mpi4py import MPI
 import numpy as np
 
 from sdm_dolfinx import problems
-from sdm_dolfinx.run import launch
+from sdm_dolfinx.run import simulate
 
 #: the problem file that declares the bar (its parameters, build function and run defaults)
 PROBLEM_FILE = Path(__file__).resolve().with_name("bar_problem.py")
@@ -115,8 +115,8 @@ def run(pair="P2/P1", Nx=40, Ny=4, cfl=0.5, after=0.5, out=None, write_every=Non
     exact = closed_form(problem)
     dt = cfl * problem.parameters["L"] / Nx / exact["c"]
     T = exact["t0"] + (1.0 + after) * exact["duration"]
-    result = launch(PROBLEM_FILE, {"Nx": Nx, "Ny": Ny, **kw}, out=out, overwrite=True, comm=comm, pair=pair,
-                    scheme="midpoint", dt=dt, T=T, write_every=write_every)
+    result = simulate(PROBLEM_FILE, {"Nx": Nx, "Ny": Ny, **kw}, out=out, overwrite=True, comm=comm, pair=pair,
+                      scheme="midpoint", dt=dt, T=T, write_every=write_every)
     return problem, result
 
 

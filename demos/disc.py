@@ -101,7 +101,7 @@ def impact_pictures(level, T, out, dt=1e-4):
     """Run P2/P1 with fields written every step, then (rank 0) a picture at maximal compression
     and a GIF of the impact, from one time step before the first contact to one after the last."""
     folder = Path(out) / f"disc_P2-P1_dt{dt:g}"
-    r = simulate(disc.problem(level=level), pair="P2/P1", scheme="midpoint", dt=dt, T=T, out=folder,
+    r = simulate(disc.problem(level=level), pair="P2/P1", scheme="midpoint", dt=dt, T=T, out=folder, overwrite=True,
                  write_every=1)
     if COMM.rank != 0:
         return None

@@ -3,7 +3,7 @@
 A membrane, pre-stretched at height 0.02 and pulled down by f = -0.6, falls onto the
 obstacle u >= 0, bounces and falls again. For each pair P1+/P0, P1/P0, P1/P1, P1+/P1 and
 P2/P1 this demo runs the midpoint scheme on the paper's mesh (h = 0.1) with dt = 1e-2 and
-1e-3, through ``sdm_dolfinx.run.launch`` with an output folder (so every run leaves its
+1e-3, through ``sdm_dolfinx.simulate`` with an output folder (so every run leaves its
 ``timeseries.csv``, ``run.json`` and ``solution.xdmf``, as the command line does), and plots
 from those files the energy, the displacement at the
 centre and the contact stress at the centre, one PNG per pair. Well-posed pairs (P1+/P0,
@@ -24,7 +24,7 @@ from mpi4py import MPI
 
 import numpy as np
 
-from sdm_dolfinx.run import launch
+from sdm_dolfinx.run import simulate
 
 PAIRS = ["P1+/P0", "P1/P0", "P1/P1", "P1+/P1", "P2/P1"]
 TIME_STEPS = [1e-2, 1e-3]
@@ -40,7 +40,7 @@ def run_all(out, T, N=10):
     for pair in PAIRS:
         for dt in TIME_STEPS:
             d = run_dir(out, pair, dt)
-            launch("membrane", {"N": N}, out=d, overwrite=True, pair=pair, dt=dt, T=T, write_every=50)
+            simulate("membrane", {"N": N}, out=d, overwrite=True, pair=pair, dt=dt, T=T, write_every=50)
             folders[(pair, dt)] = d
     return folders
 

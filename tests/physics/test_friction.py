@@ -147,11 +147,13 @@ def test_zero_friction_coefficient_is_the_frictionless_run():
 
 @pytest.mark.parametrize("opts, message", [
     ({"friction": "coulomb"}, "friction coulomb needs mu"),
-    ({"friction": "tresca", "mu": 0.3}, "mu is for friction coulomb"),
-    ({"friction": "coulomb", "mu": -1.0}, "mu must be a number >= 0"),
-    ({"friction": "stiction", "mu": 0.3}, "unknown friction law"),
-    ({"friction": "coulomb", "mu": 0.3, "linear": "amg"}, "not vi_solver ssn with linear amg"),
-    ({"friction": "tresca", "tresca_threshold": 0.1, "vi_solver": "vinewtonrsls"}, "not vi_solver vinewtonrsls"),
+    ({"friction": "tresca", "friction_options": {"mu": 0.3}}, "mu is a parameter of friction coulomb, not of friction "
+                                                              "tresca"),
+    ({"friction": "coulomb", "friction_options": {"mu": -1.0}}, "mu must be a number >= 0"),
+    ({"friction": "stiction", "friction_options": {"mu": 0.3}}, "unknown friction law"),
+    ({"friction": "coulomb", "friction_options": {"mu": 0.3}, "linear": "amg"}, "not vi_solver ssn with linear amg"),
+    ({"friction": "tresca", "friction_options": {"tresca_threshold": 0.1}, "vi_solver": "vinewtonrsls"},
+     "not vi_solver vinewtonrsls"),
 ])
 def test_friction_options_that_do_not_agree_are_refused(opts, message):
     """Also a step solver friction has not: the option would otherwise be ignored."""

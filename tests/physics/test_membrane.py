@@ -2,7 +2,8 @@
 import numpy as np
 import pytest
 
-from sdm_dolfinx import PAIRS, get_pair, membrane, simulate
+from sdm_dolfinx import membrane, simulate
+from sdm_dolfinx.method.pairs import PAIRS, get_pair
 
 
 def max_rel_dev(E):
