@@ -219,3 +219,15 @@ def test_a_built_problem_is_checked_as_a_declared_one(mpi_tmp_path):
         simulate(problem, dt=0.01, T=0.02, out=out)
     assert "overwrite" in _one_line(e)
     simulate(problem, dt=0.01, T=0.02, out=out, overwrite=True)
+
+
+def test_every_option_is_documented():
+    """docs/api.md names every option of the table and group keyword; docs/methods.md every
+    option a built-in scheme, contact treatment or friction law declares."""
+    from pathlib import Path
+    docs = Path(__file__).resolve().parents[2] / "docs"
+    api, methods = (docs / "api.md").read_text(), (docs / "methods.md").read_text()
+    missing = [p.name for p in run_options.TABLE if f"`{p.name}`" not in api]
+    missing += [kw for kw, _ in run_options.OWNER_KINDS.values() if f"`{kw}`" not in api]
+    missing += [p.name for p in run_options.declarations() if p.owner and f"`{p.name}`" not in methods]
+    assert not missing, missing
