@@ -73,9 +73,12 @@ def check_run(problem, params, given, *, out=None, overwrite=False, restart=Fals
     if restart and overwrite:
         raise RunInputError(f"a restart continues the run in {'--restart' if cli else 'out'}; remove "
                             f"{'--overwrite' if cli else 'overwrite'}")
+    if problem is None and not restart:
+        raise RunInputError("no problem: give a registered name, a problem file, a ProblemSpec or a Problem (or "
+                            "restart=True with the run's out)")
     try:
         if restart:
-            return _restart_plan(out, given, comm)
+            return _restart_plan(out, given, comm, problem, params)
         spec = resolve(problem)
         values = spec.values(params, cli=cli)
     except (ProblemInputError, RunFolderError) as e:
@@ -128,11 +131,15 @@ def _existing_parent(path):
     return path
 
 
-def _restart_plan(out, given, comm):
+def _restart_plan(out, given, comm, problem=None, params=None):
     """The plan of the run in ``out`` to be continued (the options ``given`` must be the run's,
-    but those of :data:`~sdm_dolfinx.run.options.RESTART_MAY_CHANGE`)."""
+    but those of :data:`~sdm_dolfinx.run.options.RESTART_MAY_CHANGE`; ``problem``, if given, the
+    run's problem; no ``params``: the run's own)."""
     if out is None:
         raise RunFolderError("a restart needs the run's folder (out)")
+    if params:
+        raise RunFolderError(f"a restart continues the run with its own parameters; remove params "
+                             f"({', '.join(params)})")
     info = read_info(out, comm)
     if info.get("status") == "finished":
         raise RunFolderError(f"{out}: that run is already finished")
@@ -157,6 +164,8 @@ def _restart_plan(out, given, comm):
     saved["quadrature_degree"] = quadrature.of_run(info)      # the degree it used (the automatic choice may change)
     try:
         spec = spec_of_run(info["problem"])
+        if problem is not None and resolve(problem).name != spec.name:
+            raise RunFolderError(f"{out} holds a {spec.name!r} run, not {resolve(problem).name!r}")
     except ProblemInputError as e:
         raise RunFolderError(f"{out}: {e}") from None
     return RunPlan(spec, spec.values(info["problem"]["args"]), saved, out, restart=True)

@@ -231,3 +231,24 @@ def test_every_option_is_documented():
     missing += [kw for kw, _ in run_options.OWNER_KINDS.values() if f"`{kw}`" not in api]
     missing += [p.name for p in run_options.declarations() if p.owner and f"`{p.name}`" not in methods]
     assert not missing, missing
+
+
+def test_restart_takes_the_runs_problem_parameters_and_options(mpi_tmp_path):
+    """A restart continues the run in ``out`` as it was started: other parameters, another
+    problem or another option (but checkpoint_every) are refused in one line, not ignored."""
+    from sdm_dolfinx.run import Interrupted
+    out = mpi_tmp_path / "run"
+    with pytest.raises(Interrupted):
+        simulate("membrane", {"N": 2}, dt=0.01, T=0.05, out=out, checkpoint_every=1, on_step=lambda n, row: n == 2)
+    for kw, message in ((dict(params={"N": 3}), "its own parameters; remove params (N)"),
+                        (dict(problem="disc"), "holds a 'membrane' run, not 'disc'"),
+                        (dict(dt=0.02), "it cannot change dt = 0.02 (the run has 0.01)"),
+                        (dict(overwrite=True), "remove overwrite")):
+        with pytest.raises(RunInputError) as e:
+            simulate(out=out, restart=True, **kw)
+        assert message in _one_line(e)
+    with pytest.raises(RunInputError) as e:
+        simulate()
+    assert "no problem" in _one_line(e)
+    r = simulate("membrane", out=out, restart=True, checkpoint_every=2)
+    assert r.info["status"] == "finished" and r.info["restarted_from_step"] == 2
