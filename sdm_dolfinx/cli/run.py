@@ -1,9 +1,9 @@
 """The run commands: ``python -m sdm_dolfinx PROBLEM [options]`` for a registered problem and
 ``python -m sdm_dolfinx run --problem-file FILE [options]`` for a problem of one's own.
 
-The options are the problem's declared parameters and the run options (both declared once:
-:mod:`.params` makes them options); ``--config FILE`` reads them from TOML, ``--restart DIR`` continues the run in DIR.
-Bad input: one line on stderr, exit status 2, nothing written. A failed step: one line, exit
+The options are the problem's declared parameters and the run options (both declared once;
+:mod:`.params` makes them options); ``--config FILE`` reads them from TOML, ``--restart DIR``
+continues the run in DIR. Bad input: one line on stderr, exit status 2, nothing written. A failed step: one line, exit
 status 1, the files kept up to the last good step and ``run.json`` saying ``"failed"``. An
 interrupted run: exit status 128 + the signal, a checkpoint written.
 """
@@ -16,8 +16,8 @@ from petsc4py import PETSc
 
 from sdm_dolfinx.cli.common import Parser, UsageError, folder_path, say_error
 from sdm_dolfinx.cli.config import load_config, read_toml
-from sdm_dolfinx.cli.params import add_param_options, add_run_options as add_declared_run_options, param_values
-from sdm_dolfinx.cli.params import run_option_values
+from sdm_dolfinx.cli import params as declared
+from sdm_dolfinx.cli.params import add_param_options, param_values, run_option_values
 from sdm_dolfinx.errors import StepError
 from sdm_dolfinx.problems import ProblemInputError, get, load_file, spec_of_run
 from sdm_dolfinx.problems.disc_mesh import MeshError
@@ -56,7 +56,7 @@ def add_run_options(p, defaults):
         g.add_argument("--restart", type=folder_path, default=None, metavar="DIR",
                        help="continue the run in DIR from its checkpoint, with the problem, parameters and options "
                             "of DIR/run.json (same number of ranks; only --checkpoint-every and --quiet may be given)")
-    add_declared_run_options(p, defaults, before={OUTPUT: output, RESTART: config},
+    declared.add_run_options(p, defaults, before={OUTPUT: output, RESTART: config},
                              after={OUTPUT: output_after, RESTART: restart})
     p.epilog = PETSC_EPILOG
 

@@ -6,10 +6,10 @@ runs: the membrane of the paper's section 4 and the disc of section 5 are two Pr
 a user-defined problem is a third (``docs/add_a_problem.md``).
 
 A :class:`ProblemSpec` declares a family of Problems once: its parameters (:class:`Param`:
-default, unit, bounds, help; the declaration run options share, :mod:`sdm_dolfinx.params`) and a ``build(comm, **values)`` function. The command line's
-options, the TOML keys, ``run.json`` and the rebuilding of a finished run for
-post-processing all come from that declaration, for the built-in problems and a user's
-problem file alike.
+default, unit, bounds, help; the declaration run options share, :mod:`sdm_dolfinx.params`) and
+a ``build(comm, **values)`` function. The command line's options, the TOML keys, ``run.json``
+and the rebuilding of a finished run for post-processing all come from that declaration, for
+the built-in problems and a user's problem file alike.
 """
 import traceback
 from dataclasses import dataclass, field

@@ -5,9 +5,9 @@ step matrix K, and updates (U, V) from X. The :class:`~sdm_dolfinx.run.integrato
 calls its hooks in this order (``integ`` is the Integrator, which offers the products with M
 and A, the load and the Dirichlet lifting):
 
-1. :meth:`configure` (the scheme's options, declared in :attr:`Scheme.options`: ``scheme_options``), then :meth:`refuse` (one
-   line: a combination the scheme cannot run) and :meth:`setup` (what K needs, e.g. the mass
-   solver of an explicit scheme);
+1. :meth:`configure` (the scheme's options, declared in :attr:`Scheme.options`:
+   ``scheme_options``), then :meth:`refuse` (one line: a combination the scheme cannot run)
+   and :meth:`setup` (what K needs, e.g. the mass solver of an explicit scheme);
 2. :meth:`step_matrix` (None: K = c_M M + c_A A with :meth:`coefficients`), the step solver;
 3. :meth:`prepare` (once K, the solver and the contact treatment exist: the CFL check);
 4. every step: :meth:`start` (the first step of a stateful scheme), :meth:`rhs`, the solve,
@@ -19,7 +19,7 @@ and b = L + M (alpha Vbar^n + alpha^2 U^n) (midpoint, backward Euler), which onl
 """
 import copy
 
-from sdm_dolfinx.params import OptionError, check_given
+from sdm_dolfinx.params import values_of
 
 
 class Scheme:
@@ -52,13 +52,9 @@ class Scheme:
         """A copy of this scheme for one run, with ``options`` (a dict; None values: the
         defaults of :attr:`options`). OptionError (a ValueError, one line) on an option this
         scheme does not declare or a value its declaration refuses."""
-        given = dict(options or {})
-        errors = check_given(f"scheme {self.name}", self.options, given)
-        if errors:
-            raise OptionError("; ".join(errors))
+        values = values_of(f"scheme {self.name}", self.options, dict(options or {}))
         scheme = copy.copy(self)
-        scheme.set_parameters(**{p.name: p.default if given.get(p.name) is None else given[p.name]
-                                 for p in self.options})
+        scheme.set_parameters(**values)
         return scheme
 
     def set_parameters(self, **values):

@@ -34,7 +34,8 @@ def test_block_p2_p1_with_nodes_is_measured_and_reported(mpi_tmp_path, capsys):
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["--problem", "block", "--pair", "P1/P1", "--constrain", "nodes"], "--constrain nodes is --constrain vertices for pair P1/P1"),
+    (["--problem", "block", "--pair", "P1/P1", "--constrain", "nodes"],
+     "--constrain nodes is --constrain vertices for pair P1/P1"),
     (["--problem", "block", "--pair", "P2/P1", "--constrain", "nodes", "--coulomb-bound"], "drop --constrain nodes"),
     (["--problem", "block", "--constrain", "edges"], "invalid choice: 'edges'"),
 ])
