@@ -52,7 +52,7 @@ BR = _bench_run()
 SUITE = {"problem": "disc", "pair": "P2/P1", "scheme": "midpoint", "DT1": 8e-4, "T": 0.02, "vx0": 300.0,
          "v0": -1000.0, "mu": 0.3, "levels": [1, 2, 3, 4, 5], "ranks": [1, 2]}
 #: the two cases of every (level, ranks): simulate()'s friction keywords
-CASES = {"coulomb": {"friction": "coulomb", "mu": SUITE["mu"]}, "none": {}}
+CASES = {"coulomb": {"friction": "coulomb", "friction_options": {"mu": SUITE["mu"]}}, "none": {}}
 #: the timings that are medians over the repetitions
 MEDIAN_KEYS = ("mesh_time", "setup_time", "step_time_free", "step_time_contact", "step_time_contact_mean",
                "first_contact_time", "wall_time", "cpu_step_free", "cpu_step_contact")

@@ -89,8 +89,8 @@ def run_getfem(source, NX, dt, T, mass, work):
 def run_ours(NX, dt, T, mass):
     """The same run with sdm_dolfinx (1 rank); its time series."""
     from mpi4py import MPI
-    from sdm_dolfinx.run import launch
-    r = launch("rod1d", {"NX": NX}, comm=MPI.COMM_SELF, pair="P1/P1", mass=mass, scheme="newmark", dt=dt, T=T)
+    from sdm_dolfinx.run import simulate
+    r = simulate("rod1d", {"NX": NX}, comm=MPI.COMM_SELF, pair="P1/P1", mass=mass, scheme="newmark", dt=dt, T=T)
     ts = r.timeseries
     return {"u0": np.asarray(ts["u_probe"]), "s0": -np.asarray(ts["lambda_probe"]), "E": np.asarray(ts["energy"])}
 

@@ -9,7 +9,7 @@ With it the problem has every command the paper's membrane and disc have:
     python -m sdm_dolfinx energy output/bar
     python -m sdm_dolfinx inspect --problem-file demos/bar_problem.py --Nx 20 --pair P2/P1
 
-and in Python ``sdm_dolfinx.run.launch("demos/bar_problem.py", {"Nx": 40}, out=...)``.
+and in Python ``sdm_dolfinx.simulate("demos/bar_problem.py", {"Nx": 40}, out=...)``.
 
 The bar [d, d + L] x [0, H] moves with velocity -v toward the wall x = 0, which its end face
 reaches at t0 = d / v. Frictionless contact x + u_x >= 0 at the vertices of that face. With

@@ -54,7 +54,7 @@ from mpi4py import MPI
 import numpy as np
 
 from sdm_dolfinx import problems
-from sdm_dolfinx.run import launch
+from sdm_dolfinx.run import simulate
 
 # ## The problem file
 #
@@ -136,8 +136,8 @@ def run(pair="P2/P1", Nx=40, Ny=4, cfl=0.5, after=0.5, out=None, write_every=Non
     exact = closed_form(problem)
     dt = cfl * problem.parameters["L"] / Nx / exact["c"]
     T = exact["t0"] + (1.0 + after) * exact["duration"]
-    result = launch(PROBLEM_FILE, {"Nx": Nx, "Ny": Ny, **kw}, out=out, overwrite=True, comm=comm, pair=pair,
-                    scheme="midpoint", dt=dt, T=T, write_every=write_every)
+    result = simulate(PROBLEM_FILE, {"Nx": Nx, "Ny": Ny, **kw}, out=out, overwrite=True, comm=comm, pair=pair,
+                      scheme="midpoint", dt=dt, T=T, write_every=write_every)
     return problem, result
 
 

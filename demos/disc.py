@@ -220,7 +220,7 @@ def plot_deformed(data, t_max, f_max, dt, png):
 
 def impact_pictures(level, T, out, dt=1e-4):
     folder = Path(out) / f"disc_P2-P1_dt{dt:g}"
-    r = simulate(disc.problem(level=level), pair="P2/P1", scheme="midpoint", dt=dt, T=T, out=folder,
+    r = simulate(disc.problem(level=level), pair="P2/P1", scheme="midpoint", dt=dt, T=T, out=folder, overwrite=True,
                  write_every=1)
     if COMM.rank != 0:
         return None

@@ -24,7 +24,6 @@ import numpy as np
 
 from sdm_dolfinx import simulate
 from sdm_dolfinx.problems import block, disc
-from sdm_dolfinx.run import launch
 
 COMM = MPI.COMM_WORLD
 MU_BLOCK = 0.3
@@ -51,7 +50,7 @@ def sliding_block(mu=MU_BLOCK, T=0.04):
     p = block.problem()
     m = block.total_mass(p)
     prm = p.parameters
-    ts = simulate(p, pair="P2/P1", dt=1e-4, T=T, friction="coulomb", mu=mu).timeseries
+    ts = simulate(p, pair="P2/P1", dt=1e-4, T=T, friction="coulomb", friction_options={"mu": mu}).timeseries
     t, v = ts["t"], ts["momentum_x"] / m
     a_cf, t_cf, d_cf = block.stopping(prm["v0"], prm["gravity"], m, prm["width"], mu=mu)
     sel = (v > 0.1 * prm["v0"]) & (v < 0.9 * prm["v0"])
@@ -75,8 +74,8 @@ def sliding_block(mu=MU_BLOCK, T=0.04):
 def oblique_impact(mu, out, level=1, dt=1e-4, T=0.017):
     """The disc with vx0 = VX0 and Coulomb ``mu``: the time series, the normal impulse J_N / m
     and the change of horizontal velocity."""
-    r = launch("disc", {"level": level, "vx0": VX0}, out=out, overwrite=True, pair="P2/P1", dt=dt, T=T,
-               friction="coulomb", mu=mu, write_every=1)
+    r = simulate("disc", {"level": level, "vx0": VX0}, out=out, overwrite=True, pair="P2/P1", dt=dt, T=T,
+                 friction="coulomb", friction_options={"mu": mu}, write_every=1)
     ts = r.timeseries
     m = disc.total_mass(r.discretisation.problem)
     g = r.discretisation.problem.parameters["gravity"]

@@ -35,7 +35,7 @@ from mpi4py import MPI
 
 import numpy as np
 
-from sdm_dolfinx.run import launch
+from sdm_dolfinx.run import simulate
 
 PAIRS = ["P1+/P0", "P1/P0", "P1/P1", "P1+/P1", "P2/P1"]
 WELL_POSED = ["P1+/P0", "P1+/P1", "P2/P1"]
@@ -60,7 +60,7 @@ def run_all(out, T, N=10):
     for pair in PAIRS:
         for dt in TIME_STEPS:
             d = run_dir(out, pair, dt)
-            result = launch("membrane", {"N": N}, out=d, overwrite=True, pair=pair, dt=dt, T=T, write_every=50)
+            result = simulate("membrane", {"N": N}, out=d, overwrite=True, pair=pair, dt=dt, T=T, write_every=50)
             runs[pair, dt] = (d, result.timeseries)
     return runs
 

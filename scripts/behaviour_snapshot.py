@@ -5,7 +5,7 @@
 
 The set: the membrane (N = 10, T = 0.8, dt = 1e-3) with every registered pair and both time
 schemes (plus the consistent C of P2/P1 and P1+/P1), and the disc at level 1 (dt = 1e-4,
-T = 0.02) with P2/P1 and P2/P2; then, through ``launch``, friction (Coulomb, Tresca; 2-D and
+T = 0.02) with P2/P1 and P2/P2; then, declared problems run by name, friction (Coulomb, Tresca; 2-D and
 3-D), the penalty and Nitsche treatments, every other scheme, PETSc's VI solver, the 1-D rod and
 bar, and the constraint at every node (:data:`LAUNCHED`). 38 runs, about a minute. ``compare`` prints, per run and column, the largest difference
 relative to the column's largest magnitude, and exits 1 when one exceeds ``--rtol``.
@@ -32,7 +32,7 @@ RUNS = ([("membrane", pair, scheme, None) for pair in ("P1+/P0", "P1/P0", "P1/P1
         + [("disc", pair, "midpoint", None) for pair in ("P2/P1", "P2/P2")])
 
 
-#: (problem, its parameters, run options in launch's flat spelling)
+#: (problem, its parameters, run options in run.json's flat spelling)
 LAUNCHED = [
     ("block", {}, dict(friction="coulomb", mu=0.3, T=0.01)),
     ("block", {}, dict(friction="tresca", tresca_threshold=0.002, T=0.01)),
@@ -55,13 +55,15 @@ LAUNCHED = [
 
 
 def _launch(name, params, opts):
-    """launch() of whichever API is installed: flat run options, or the grouped ones."""
-    from sdm_dolfinx.run import launch
+    """The declared problem ``name`` run with the flat options ``opts`` by whichever API is
+    installed: ``simulate(name, params, **grouped(opts))``, or the older ``launch`` (flat)."""
     try:
         from sdm_dolfinx.run.options import grouped
     except ImportError:
+        from sdm_dolfinx.run import launch
         return launch(name, params, **opts)
-    return launch(name, params, **grouped(opts))
+    from sdm_dolfinx.run import simulate
+    return simulate(name, params, **grouped(opts))
 
 
 def record(path):

@@ -3,14 +3,12 @@
 Quick use::
 
     from sdm_dolfinx import simulate
-    from sdm_dolfinx.problems import membrane
-    result = simulate(membrane.problem(N=10), pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8)
+    result = simulate("membrane", {"N": 10}, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8)
     result.timeseries["energy"]
 
-The package's folders are its layers (docs/architecture.md): ``problems`` (what is solved),
-``method`` (pairs, discretisation, time schemes), ``solvers`` (the step's variational
-inequality), ``run`` (the time loop and its files), ``post`` (reading runs back), ``paper``
-(the paper's study) and ``cli`` (the command line).
+``simulate`` runs a declared problem by name (or a problem file, or a ``ProblemSpec``) with its
+parameters, or a built :class:`Problem` (``membrane.problem(N=10)``); ``plan`` checks the same
+inputs without running. The package's folders are its layers (docs/architecture.md).
 """
 import logging
 
@@ -24,15 +22,24 @@ for _h in logging.getLogger().handlers:
 # blank line): our warnings (e.g. BoundaryGapWarning) are one line each, shown by Python itself.
 logging.captureWarnings(False)
 
-from sdm_dolfinx.problems import disc, membrane  # noqa: E402
-from sdm_dolfinx.problems.base import Problem  # noqa: E402
-from sdm_dolfinx.method.discretisation import Discretisation  # noqa: E402
 from sdm_dolfinx.errors import SdmError, StepError  # noqa: E402
-from sdm_dolfinx.run.integrator import SCHEMES, Integrator  # noqa: E402
-from sdm_dolfinx.method.pairs import MASS_TREATMENTS, PAIRS, Pair, get_pair  # noqa: E402
-from sdm_dolfinx.run import Result, launch, simulate  # noqa: E402
-from sdm_dolfinx.solvers import VIError  # noqa: E402
+from sdm_dolfinx.params import OptionError, Param  # noqa: E402
+from sdm_dolfinx.problems import Problem, ProblemInputError, ProblemSpec  # noqa: E402
+from sdm_dolfinx.problems import ball, bar, block, disc, membrane, rod1d  # noqa: E402
+from sdm_dolfinx.problems import register as register_problem  # noqa: E402
+from sdm_dolfinx.method.errors import DiscretisationError  # noqa: E402
+from sdm_dolfinx.method.pairs import Pair  # noqa: E402
+from sdm_dolfinx.method.pairs import register as register_pair  # noqa: E402
+from sdm_dolfinx.schemes import Scheme  # noqa: E402
+from sdm_dolfinx.schemes import register as register_scheme  # noqa: E402
+from sdm_dolfinx.contact import register as register_contact  # noqa: E402
+from sdm_dolfinx.solvers import register as register_step_solver  # noqa: E402
+from sdm_dolfinx.io import CheckpointError, RunFolderError  # noqa: E402
+from sdm_dolfinx.run import Interrupted, Result, RunInputError, SolverSetupError, plan, simulate  # noqa: E402
 
-__all__ = ["SdmError", "membrane", "disc", "Discretisation", "Integrator", "SCHEMES", "StepError", "PAIRS", "Pair",
-           "get_pair", "MASS_TREATMENTS", "Problem", "Result", "simulate", "launch", "VIError"]
+__all__ = ["simulate", "plan", "Result", "Problem", "ProblemSpec", "Param", "Pair", "Scheme",
+           "register_problem", "register_pair", "register_scheme", "register_contact", "register_step_solver",
+           "SdmError", "StepError", "RunInputError", "ProblemInputError", "OptionError", "DiscretisationError",
+           "Interrupted", "SolverSetupError", "CheckpointError", "RunFolderError",
+           "ball", "bar", "block", "disc", "membrane", "rod1d"]
 __version__ = "0.1.0"

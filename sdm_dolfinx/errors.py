@@ -3,7 +3,7 @@ reports in one line (bad input, a refused combination, a failed step, a folder t
 run), so that a user's script can catch them all with ``except SdmError``.
 
 Each concept's own errors derive from these where they are defined (``RunInputError`` in
-:mod:`sdm_dolfinx.run.launch`, ``VIError`` in :mod:`sdm_dolfinx.solvers.base`, ...); what the
+:mod:`sdm_dolfinx.run.options`, ``VIError`` in :mod:`sdm_dolfinx.solvers.base`, ...); what the
 lowest layers and the file formats share is here. Imports nothing of ours.
 """
 

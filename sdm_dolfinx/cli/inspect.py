@@ -1,8 +1,9 @@
 """``python -m sdm_dolfinx inspect [PROBLEM] [options]``: the inf-sup condition (7) of a problem,
 a pair and a mesh (:mod:`sdm_dolfinx.analysis.infsup`).
 
-The problem is a registered one (the first argument or ``--problem NAME``, default membrane)
-or a user's problem file (``--problem-file FILE``); its options are those it declares, as for
+The problem is a registered one (``--problem NAME``, default membrane; the first argument
+``inspect NAME`` is a deprecated alias, with a note on stderr) or a user's problem file
+(``--problem-file FILE``); its options are those it declares, as for
 the run commands. ``--sweep`` runs a sequence of meshes (the membrane's ``--N``, the disc's
 ``--level``). ``--constrain nodes`` measures (7) with the constraint at every dof of W^h on the
 constrained boundary (P2's mid-edge nodes too) instead of the vertices (eq. (13)). Bad input: one
@@ -27,7 +28,7 @@ from sdm_dolfinx.analysis.coulomb_bound import bound_line, coulomb_bound
 from sdm_dolfinx.problems import ProblemInputError
 from sdm_dolfinx.problems.disc_mesh import MeshError
 from sdm_dolfinx.run import RunInputError
-from sdm_dolfinx.run.launch import check_memory
+from sdm_dolfinx.run.memory import check_memory
 
 PROG = "python -m sdm_dolfinx inspect"
 #: the problem when none is named
@@ -41,9 +42,10 @@ def _sweep_of(spec):
     return SWEEPS.get(spec.name) if spec.source is None else None
 
 
-def choose_spec(argv):
-    """The problem's declaration: the first argument if it is not an option, ``--problem NAME``
-    or ``--problem-file FILE`` (default: the membrane). UsageError for an unknown one."""
+def choose_spec(argv, comm=MPI.COMM_WORLD):
+    """The problem's declaration: ``--problem NAME``, the first argument if it is not an option
+    (deprecated: a note on stderr) or ``--problem-file FILE`` (default: the membrane). UsageError
+    for an unknown one."""
     pre = Parser(add_help=False, prog=PROG)
     pre.add_argument("--problem", default=None)
     pre.add_argument("--problem-file", type=Path, default=None)
@@ -51,6 +53,9 @@ def choose_spec(argv):
     first = argv[0] if argv and not argv[0].startswith("-") else None
     if first is not None and known.problem is not None and first != known.problem:
         raise UsageError(f"two problems named: {first} and --problem {known.problem}")
+    if first is not None and comm.rank == 0 and "-h" not in argv and "--help" not in argv:
+        print(f"{PROG}: note: 'inspect {first}' is deprecated: write 'inspect --problem {first}'", file=sys.stderr,
+              flush=True)
     name = first or known.problem
     if known.problem_file is not None:
         if name is not None:
@@ -76,8 +81,9 @@ def build_parser(spec):
                       "--N, --diagonal, --no-obstacle; the disc's --level, --h, --radius, --contact-zone, "
                       "--no-contact) change the result; the others are accepted for symmetry with the run commands.")
     p.add_argument("problem_name", nargs="?", default=None, metavar="PROBLEM",
+                   help="deprecated: the same as --problem PROBLEM")
+    p.add_argument("--problem", default=None, metavar="NAME",
                    help=f"a registered problem: {', '.join(problems.names())} (default {DEFAULT_PROBLEM})")
-    p.add_argument("--problem", default=None, metavar="NAME", help="the same as PROBLEM")
     p.add_argument("--problem-file", type=Path, default=None, metavar="FILE",
                    help="a Python file defining PROBLEM = ProblemSpec(...) (docs/add_a_problem.md)")
     default_pair = spec.defaults.get("pair", "P1+/P0")
@@ -206,7 +212,7 @@ def main(argv=None):
     argv = sys.argv[1:] if argv is None else list(argv)
     try:
         try:
-            spec = choose_spec(argv)
+            spec = choose_spec(argv, comm)
         except UsageError:
             if "-h" not in argv and "--help" not in argv:
                 raise

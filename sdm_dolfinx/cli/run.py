@@ -1,9 +1,9 @@
 """The run commands: ``python -m sdm_dolfinx PROBLEM [options]`` for a registered problem and
 ``python -m sdm_dolfinx run --problem-file FILE [options]`` for a problem of one's own.
 
-The options are the problem's declared parameters (:mod:`.params`) plus the run options
-below; ``--config FILE`` reads them from TOML, ``--restart DIR`` continues the run in DIR.
-Bad input: one line on stderr, exit status 2, nothing written. A failed step: one line, exit
+The options are the problem's declared parameters and the run options (both declared once;
+:mod:`.params` makes them options); ``--config FILE`` reads them from TOML, ``--restart DIR``
+continues the run in DIR. Bad input: one line on stderr, exit status 2, nothing written. A failed step: one line, exit
 status 1, the files kept up to the last good step and ``run.json`` saying ``"failed"``. An
 interrupted run: exit status 128 + the signal, a checkpoint written.
 """
@@ -14,27 +14,19 @@ from pathlib import Path
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from sdm_dolfinx.cli.common import (Parser, UsageError, folder_path, nonnegative_float, positive_float, positive_int,
-                                    say_error)
+from sdm_dolfinx.cli.common import Parser, UsageError, folder_path, say_error
 from sdm_dolfinx.cli.config import load_config, read_toml
-from sdm_dolfinx.cli.params import add_param_options, param_values
-from sdm_dolfinx.method import quadrature
-from sdm_dolfinx.contact import friction
-from sdm_dolfinx import schemes
+from sdm_dolfinx.cli import params as declared
+from sdm_dolfinx.cli.params import add_param_options, param_values, run_option_values
 from sdm_dolfinx.errors import StepError
-from sdm_dolfinx.method.pairs import MASS_TREATMENTS, PAIRS
 from sdm_dolfinx.problems import ProblemInputError, get, load_file, spec_of_run
 from sdm_dolfinx.problems.disc_mesh import MeshError
-from sdm_dolfinx.run import Interrupted, RunInputError, SolverSetupError, plan
+from sdm_dolfinx.run import Interrupted, RunInputError, SolverSetupError, grouped, plan
 from sdm_dolfinx.io import CheckpointError, RunFolderError, read_info
-from sdm_dolfinx.run.launch import CONSTRAIN, CONTACTS
-from sdm_dolfinx.solvers import LINEAR_STRATEGIES, VI_OPTIONS, VI_SOLVERS
+from sdm_dolfinx.run.options import OUTPUT, RESTART
+from sdm_dolfinx.solvers import VI_OPTIONS
 
 PROG = "python -m sdm_dolfinx"
-#: the parsed options that are run options of :func:`sdm_dolfinx.run.plan`
-RUN_OPTIONS = ("pair", "mass", "scheme", "dt", "T", "vi_solver", "linear", "write_every", "checkpoint_every",
-               "quadrature_degree", "friction", "mu", "tresca_threshold", "constrain", "contact", "penalty",
-               "nitsche_theta", "nitsche_gamma0", "hht_alpha", "restitution")
 
 PETSC_EPILOG = (
     "PETSc options of the step solver can be added as -sdm_<option>: -sdm_vi_rtol (default 1e-10, "
@@ -46,118 +38,27 @@ PETSC_EPILOG = (
 
 
 def add_run_options(p, defaults):
-    """The options common to every run command (pair, scheme, dt, T, solver, output, restart)."""
-    S = argparse.SUPPRESS
-    g = p.add_argument_group("discretisation and run")
-    g.add_argument("--pair", default=S, choices=list(PAIRS), metavar="PAIR",
-                   help=f"(W^h, H^h) pair: {', '.join(PAIRS)} (default {defaults.get('pair', 'P1+/P0')})")
-    g.add_argument("--mass", choices=MASS_TREATMENTS, default=S,
-                   help="C treatment: diagonal (P0), lumped or consistent (P1 velocity; consistent solves the "
-                        "(U, V) block system), standard (H = W); default: diagonal for P0, lumped for P1")
-    g.add_argument("--scheme", default=S, choices=list(schemes.names()),
-                   help=f"time scheme (default {defaults.get('scheme', 'midpoint')})")
-    unit = defaults.get("time_unit", "")
-    unit = f", {unit}" if unit else ""
-    g.add_argument("--dt", type=positive_float, default=S, help=f"time step (default {defaults.get('dt')}{unit})")
-    g.add_argument("--T", type=positive_float, default=S, help=f"final time (default {defaults.get('T')}{unit})")
-    g.add_argument("--vi-solver", choices=VI_SOLVERS, default=S,
-                   help="step solver: ssn = semi-smooth Newton / primal-dual active set (default), or PETSc SNES "
-                        "vinewtonrsls / vinewtonssls")
-    g.add_argument("--linear", choices=LINEAR_STRATEGIES, default=S,
-                   help="linear solves of the semi-smooth Newton: auto = schur, or amg above 10000 constrained "
-                        "dofs, or in 3-D cg-gamg when a factorisation would not fit in memory (default); schur = one factorisation of the step matrix per run, the active set by a "
-                        "small dense Schur complement of cached columns K^-1 e_i; cg-factor = one factorisation, CG "
-                        "on the inactive set; lu = refactorise at every Newton iteration; amg = CG + BoomerAMG on "
-                        "the reduced matrix (set up when the active set changes); cg-amg = CG on the inactive set "
-                        "with one BoomerAMG set-up of the step matrix; cg-gamg = CG on the inactive set with one GAMG "
-                        "set-up (rigid body modes), no factorisation")
-    g.add_argument("--quadrature-degree", type=quadrature_degree, default=S, metavar="Q",
-                   help=f"quadrature degree of every form: auto = UFL's exact estimate on affine simplices, "
-                        f"{quadrature.CURVED_DEGREE} on curved cells (the disc's P2 geometry: entries converged to "
-                        f"round-off; default); {quadrature.ESTIMATED} = UFL's estimate everywhere (runs before this "
-                        f"option); or an integer from 1 to {quadrature.MAX_DEGREE}")
-    f = p.add_argument_group("friction (2-D and 3-D problems: the tangential components are the ones other "
-                             "than the constrained one)")
-    f.add_argument("--friction", choices=friction.LAWS, default=S,
-                   help=f"friction at the constrained vertices (default {defaults.get('friction') or 'none'}): "
-                        f"coulomb = |lam_T| <= mu lam_N; tresca = |lam_T| <= threshold x the vertex's boundary "
-                        f"measure at every constrained vertex, in contact or not (for a body in lasting contact)")
-    f.add_argument("--mu", type=nonnegative_float, default=S, help="Coulomb's friction coefficient (--friction coulomb)")
-    f.add_argument("--tresca-threshold", type=nonnegative_float, default=S, metavar="S",
-                   help="Tresca's threshold, a stress in the problem's units (--friction tresca)")
-    add_method_options(p, defaults)
-    o = p.add_argument_group("output")
-    o.add_argument("--out", type=folder_path, default=None, help="output folder (default output/<problem>)")
-    o.add_argument("--write-every", type=positive_int, default=S, metavar="K",
-                   help="write the XDMF fields every K steps (default 10)")
-    o.add_argument("--overwrite", action="store_true", help="replace a run in --out")
-    o.add_argument("--quiet", action="store_true", help="no progress lines")
-    r = p.add_argument_group("configuration and restart")
-    r.add_argument("--config", type=Path, default=None, metavar="FILE",
-                   help="TOML file of option = value pairs (names as here, without --); the command line overrides it")
-    r.add_argument("--checkpoint-every", type=positive_int, default=S, metavar="K",
-                   help="write DIR/checkpoint.npz every K steps (a SIGINT/SIGTERM always writes one)")
-    r.add_argument("--restart", type=folder_path, default=None, metavar="DIR",
-                   help="continue the run in DIR from its checkpoint, with the problem, parameters and options of "
-                        "DIR/run.json (same number of ranks; only --checkpoint-every and --quiet may be given)")
+    """The run options (declared once: :mod:`sdm_dolfinx.run.options`) and the options of every
+    run command (output, configuration, restart)."""
+    def output(g):
+        g.add_argument("--out", type=folder_path, default=None, help="output folder (default output/<problem>)")
+
+    def output_after(g):
+        g.add_argument("--overwrite", action="store_true", help="replace a run in --out")
+        g.add_argument("--quiet", action="store_true", help="no progress lines")
+
+    def config(g):
+        g.add_argument("--config", type=Path, default=None, metavar="FILE",
+                       help="TOML file of option = value pairs (names as here, without --); the command line "
+                            "overrides it")
+
+    def restart(g):
+        g.add_argument("--restart", type=folder_path, default=None, metavar="DIR",
+                       help="continue the run in DIR from its checkpoint, with the problem, parameters and options "
+                            "of DIR/run.json (same number of ranks; only --checkpoint-every and --quiet may be given)")
+    declared.add_run_options(p, defaults, before={OUTPUT: output, RESTART: config},
+                             after={OUTPUT: output_after, RESTART: restart})
     p.epilog = PETSC_EPILOG
-
-
-def add_method_options(p, defaults):
-    """The options of the method comparison: where K^h acts, the contact treatment and the
-    schemes' parameters (docs/methods.md)."""
-    S = argparse.SUPPRESS
-    m = p.add_argument_group("contact treatment and scheme parameters (docs/methods.md)")
-    m.add_argument("--constrain", choices=CONSTRAIN, default=S,
-                   help="where the constraint holds: vertices (eq. (13), default) or nodes (every dof of W^h on the "
-                        "constrained boundary: P2 mid-edge nodes too)")
-    m.add_argument("--contact", choices=CONTACTS, default=S,
-                   help=f"contact treatment: exact (the variational inequality, default), penalty (--penalty) or "
-                        f"nitsche (--nitsche-theta, --nitsche-gamma0)")
-    m.add_argument("--penalty", type=positive_float, default=S, metavar="EPS",
-                   help="penalty parameter (--contact penalty; see docs/methods.md for its scale and default)")
-    m.add_argument("--nitsche-theta", type=nitsche_theta, default=S, metavar="THETA",
-                   help="Nitsche's theta: 1 (symmetric), 0 or -1 (skew-symmetric) (--contact nitsche)")
-    m.add_argument("--nitsche-gamma0", type=positive_float, default=S, metavar="G0",
-                   help="Nitsche's gamma0: gamma = gamma0 / h (--contact nitsche)")
-    m.add_argument("--hht-alpha", type=float, default=S, metavar="ALPHA",
-                   help="the HHT scheme's alpha in [-1/3, 0] (--scheme hht)")
-    m.add_argument("--restitution", type=nonnegative_float, default=S, metavar="E",
-                   help="restitution coefficient in [0, 1] (--scheme paoli-schatzman)")
-
-
-def nitsche_theta(text):
-    """argparse type of --nitsche-theta: -1, 0 or 1."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = None
-    if value not in (-1.0, 0.0, 1.0):
-        raise argparse.ArgumentTypeError(f"{text!r} is not -1, 0 or 1")
-    return int(value)
-
-
-def quadrature_degree(text):
-    """argparse type of --quadrature-degree: an integer from 1 to MAX_DEGREE, ``auto`` (None) or
-    ``estimated``."""
-    word = str(text).strip()
-    if word in (quadrature.AUTO, quadrature.ESTIMATED):
-        return None if word == quadrature.AUTO else word
-    try:
-        value = int(word)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer, {quadrature.AUTO} or "
-                                         f"{quadrature.ESTIMATED}") from None
-    if not 1 <= value <= quadrature.MAX_DEGREE:
-        raise argparse.ArgumentTypeError(f"{value} is out of range: from 1 to {quadrature.MAX_DEGREE} (the "
-                                         f"largest Xiao-Gimbutas rule of basix; the disc's entries stop "
-                                         f"changing at {quadrature.CURVED_DEGREE})")
-    return value
-
-
-#: a TOML value of --quadrature-degree: an integer or a word
-quadrature_degree.toml_types = (int, str)
-quadrature_degree.toml_expected = f"an integer, {quadrature.AUTO!r} or {quadrature.ESTIMATED!r}"
 
 
 def build_parser(spec, command):
@@ -246,7 +147,7 @@ def _check_config_params(path, data, spec):
 def make_plan(spec, args, command, comm):
     """The checked :class:`~sdm_dolfinx.run.RunPlan` (UsageError with every reason otherwise)."""
     params = param_values(args, spec)
-    opts = {k: getattr(args, k) for k in RUN_OPTIONS if hasattr(args, k)}
+    opts = grouped(run_option_values(args))
     try:
         if args.restart is not None:
             if params:
@@ -254,20 +155,11 @@ def make_plan(spec, args, command, comm):
                                  f"{', '.join('--' + spec.param(k).option for k in params)}")
             if args.out is not None and args.out != args.restart:
                 raise UsageError("--restart continues the run in its own folder; remove --out")
-            return plan(out=args.restart, restart=True, comm=comm, **opts)
+            return plan(out=args.restart, restart=True, overwrite=args.overwrite, comm=comm, cli=True, **opts)
         out = args.out if args.out is not None else Path("output") / spec.name
         return plan(spec, params, out=out, overwrite=args.overwrite, comm=comm, cli=True, **opts)
     except RunInputError as e:
-        raise UsageError(_cli_words(str(e))) from None
-
-
-def _cli_words(msg):
-    """Run-option names as the command line spells them."""
-    for k in ("write_every", "checkpoint_every", "vi_solver", "quadrature_degree", "tresca_threshold", "dt", "T",
-              "hht_alpha", "nitsche_theta", "nitsche_gamma0", "penalty", "restitution"):
-        flag = f"--{k.replace('_', '-')}"
-        msg = msg.replace(f"{k} must", f"{flag} must").replace(f"{k} (", f"--{k} (").replace(f"{k} is a", f"{flag} is a")
-    return msg
+        raise UsageError(str(e)) from None
 
 
 def petsc_overrides(extra):

@@ -13,10 +13,13 @@ method uses the paper's pairs: P2/P1 everywhere (1-D included), P1+/P0 on triang
 """
 from dataclasses import dataclass
 
-#: the run options a method may set (simulate's keyword arguments), with simulate's defaults
-METHOD_OPTIONS = {"pair": None, "mass": None, "scheme": "midpoint", "constrain": "vertices", "contact": "exact",
-                  "penalty": None, "nitsche_theta": None, "nitsche_gamma0": None, "hht_alpha": None,
-                  "restitution": None}
+from sdm_dolfinx.run import options as run_options
+
+#: the run options a method may set (flat, as run.json's: the pair and its mass, and the options of
+#: the method group: where K^h acts, the contact treatment, the schemes' and treatments' options),
+#: with the table's defaults
+METHOD_OPTIONS = {k: v for k, v in run_options.complete({}).items()
+                  if k in ("pair", "mass", "scheme") or k in run_options.method_names()}
 
 
 @dataclass(frozen=True)

@@ -23,9 +23,9 @@ from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.mpiutil import atomic_write_text, json_text
 from sdm_dolfinx.post import metrics as cm
 from sdm_dolfinx.problems import ProblemInputError
-from sdm_dolfinx.run import Interrupted, RunInputError, num_steps, plan, simulate
+from sdm_dolfinx.run import Interrupted, RunInputError, grouped, num_steps, plan, simulate
 from sdm_dolfinx.run.result import BoundaryGapWarning
-from sdm_dolfinx.run.simulate import SolverSetupError
+from sdm_dolfinx.run import SolverSetupError
 
 COMM = MPI.COMM_WORLD
 #: the file that marks a run of the comparison done
@@ -156,7 +156,8 @@ def run_job(job, problem_name, problem, truth_of, comm=COMM, exact=None, against
 
 
 def _simulate_options(job):
-    return {k: v for k, v in job.method.run_options().items() if v is not None}
+    """The method's run options as simulate's keywords (a scheme's or treatment's in its group)."""
+    return grouped(job.method.run_options())
 
 
 def _check_options(job, problem_name, comm):

@@ -21,31 +21,36 @@ read-only, all a treatment may rely on; never the Integrator), and returns a tre
 * ``describe()``: the options and the parameters they gave (for run.json);
 * ``destroy()``.
 
-A treatment is one module with a factory ``make(context, options)`` and one :func:`register`
-line below: ``penalty`` (:mod:`.penalty`) and ``nitsche`` (:mod:`.nitsche`). Their options
-(:data:`OPTIONS`; None: the treatment's documented default) come from ``contact_options``.
+A treatment is one module with a factory ``make(context, options)``, its options declared as
+:class:`~sdm_dolfinx.params.Param` (default, bounds, help), and one :func:`register` line below:
+``penalty`` (:mod:`.penalty`) and ``nitsche`` (:mod:`.nitsche`). Their values (None: the
+declared default, which the treatment applies) come from ``contact_options``; the run options,
+the command line's ``--name`` and every check of a value derive from the declarations.
 """
-import math
-
 from sdm_dolfinx.contact import nitsche, penalty
 from sdm_dolfinx.contact.context import StepContext
+from sdm_dolfinx.params import OptionError, check_given
 
 #: the treatment the Integrator handles itself (the variational inequality)
 EXACT = "exact"
 
-#: every option of every treatment, and the treatment it belongs to
-OPTIONS = {"penalty": "penalty", "nitsche_theta": "nitsche", "nitsche_gamma0": "nitsche"}
-
+#: name -> (factory, declared options)
 _FACTORIES = {}
 
 
-def register(name, factory):
-    """Make ``factory(context, options) -> treatment`` the contact treatment ``name`` (``context``:
-    a :class:`~.context.StepContext`)."""
+def register(name, factory, options=()):
+    """Make ``factory(context, options) -> treatment`` the contact treatment ``name`` (``context``: a
+    :class:`~.context.StepContext`), whose options are the :class:`~sdm_dolfinx.params.Param`
+    declarations ``options`` (``factory`` receives the ones given, without None values)."""
     if name == EXACT or name in _FACTORIES:
         raise ValueError(f"a contact treatment {name!r} exists already")
-    _FACTORIES[name] = factory
+    _FACTORIES[name] = (factory, tuple(options))
     return factory
+
+
+def unregister(name):
+    """Remove the contact treatment ``name`` (registered by user code; a test's clean-up)."""
+    _FACTORIES.pop(name, None)
 
 
 def names():
@@ -53,38 +58,26 @@ def names():
     return (EXACT, *_FACTORIES)
 
 
+def options_of(name):
+    """The options the treatment ``name`` declares (``"exact"``: none)."""
+    return () if name == EXACT else _FACTORIES[name][1]
+
+
 def check(name, options=None):
     """The one-line messages refusing ``name`` with ``options`` (empty when fine): an unknown
-    treatment, an unknown option, an option of another treatment, a value out of range."""
-    options = {k: v for k, v in dict(options or {}).items() if v is not None}
+    treatment, an option it does not declare, a value its declaration refuses."""
     if name not in names():
         return [f"unknown contact treatment {name!r}; choose one of {', '.join(names())}"]
-    bad = []
-    for key, value in options.items():
-        owner = OPTIONS.get(key)
-        if owner is None:
-            bad.append(f"unknown contact option {key!r}; choose among {', '.join(OPTIONS)}")
-        elif owner != name:
-            bad.append(f"option {key!r} belongs to contact={owner!r}, not contact={name!r}")
-        elif key == "nitsche_theta":
-            if not _number(value) or value not in nitsche.THETAS:
-                bad.append(f"nitsche_theta must be one of {', '.join(map(str, nitsche.THETAS))} (got {value!r})")
-        elif not _number(value) or not 0.0 < value < math.inf:
-            bad.append(f"{key} must be a finite number > 0 (got {value!r})")
-    return bad
-
-
-def _number(v):
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+    return check_given(f"contact {name}", options_of(name), dict(options or {}))
 
 
 def make(name, context, options=None):
     """The treatment ``name`` for the step of ``context`` (a :class:`~.context.StepContext`: K,
-    discretisation, dt, block, factor_matrix); ``options`` a dict among :data:`OPTIONS` (None
+    discretisation, dt, block, factor_matrix); ``options`` a dict of its declared options (None
     values: the defaults).
 
     Raises:
-        ValueError: what :func:`check` refuses (``"exact"`` included: the Integrator's own).
+        OptionError: what :func:`check` refuses (``"exact"`` included: the Integrator's own).
         TypeError: ``context`` is not a StepContext (a treatment is never given the Integrator).
         DiscretisationError: the treatment does not apply to this problem (one line, why).
     """
@@ -92,12 +85,12 @@ def make(name, context, options=None):
         raise ValueError("contact='exact' is the Integrator's own variational inequality, not a treatment to make")
     bad = check(name, options)
     if bad:
-        raise ValueError("; ".join(bad))
+        raise OptionError("; ".join(bad))
     if not isinstance(context, StepContext):
         raise TypeError(f"contact.make takes a StepContext, got {type(context).__name__}")
     options = {k: v for k, v in dict(options or {}).items() if v is not None}
-    return _FACTORIES[name](context, options)
+    return _FACTORIES[name][0](context, options)
 
 
-register("penalty", penalty.make)
-register("nitsche", nitsche.make)
+register("penalty", penalty.make, penalty.OPTIONS)
+register("nitsche", nitsche.make, nitsche.OPTIONS)

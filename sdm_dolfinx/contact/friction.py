@@ -42,8 +42,24 @@ from typing import Optional
 
 import numpy as np
 
+from sdm_dolfinx.params import OptionError, Param, check_given
+
+#: each friction law (the values of the run option ``friction``) and the options it declares
+#: (``friction_options``)
+LAW_OPTIONS = {
+    "none": (),
+    "tresca": (Param("tresca_threshold", None, "Tresca's threshold, a stress in the problem's units", type=float,
+                     low=0.0, expect="a number >= 0", metavar="S", required=True),),
+    "coulomb": (Param("mu", None, "Coulomb's friction coefficient", type=float, low=0.0, expect="a number >= 0",
+                      required=True),),
+}
 #: the values of the run option ``friction``
-LAWS = ("none", "tresca", "coulomb")
+LAWS = tuple(LAW_OPTIONS)
+
+
+def options_of(law):
+    """The options the friction law ``law`` declares (None: ``"none"``)."""
+    return LAW_OPTIONS[law or "none"]
 
 
 @dataclass(frozen=True)
@@ -68,24 +84,12 @@ class Friction:
 
 def check(friction, mu, threshold):
     """Messages (a list, empty when good) for the run options ``friction``, ``mu``,
-    ``tresca_threshold`` (as the command line spells them)."""
+    ``tresca_threshold``: an unknown law, an option the law does not declare, a value its
+    declaration refuses, a required one missing."""
     law = friction or "none"
     if law not in LAWS:
         return [f"unknown friction law {law!r}; choose one of {', '.join(LAWS)}"]
-    errors = []
-    need, other = {"none": (None, None), "tresca": ("tresca_threshold", "mu"),
-                   "coulomb": ("mu", "tresca_threshold")}[law]
-    values = {"mu": mu, "tresca_threshold": threshold}
-    for name, value in values.items():
-        if value is None:
-            continue
-        if name != need:
-            errors.append(f"{name} is for friction {'coulomb' if name == 'mu' else 'tresca'} (friction is {law!r})")
-        elif isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or value < 0:
-            errors.append(f"{name} must be a number >= 0 (got {value!r})")
-    if need is not None and values[need] is None:
-        errors.append(f"friction {law} needs {need}")
-    return errors
+    return check_given(f"friction {law}", options_of(law), {"mu": mu, "tresca_threshold": threshold})
 
 
 #: the step solver and linear strategies a frictional step can run with (its own semi-smooth
@@ -103,10 +107,11 @@ def check_solver(friction, vi_solver, linear):
 
 
 def make(friction=None, mu=None, threshold=None):
-    """The :class:`Friction` of the run options (ValueError, one line, when they do not agree)."""
+    """The :class:`Friction` of the run options (OptionError, a ValueError, one line, when they do
+    not agree)."""
     errors = check(friction, mu, threshold)
     if errors:
-        raise ValueError("; ".join(errors))
+        raise OptionError("; ".join(errors))
     law = friction or "none"
     return Friction(law, None if mu is None else float(mu), None if threshold is None else float(threshold))
 

@@ -76,6 +76,7 @@ from sdm_dolfinx.contact.boundary import (cell_diameter, check_on_boundary, cont
 from sdm_dolfinx.contact.nitsche_newton import NitscheNewton
 from sdm_dolfinx.method.discretisation import owned_size
 from sdm_dolfinx.method.errors import DiscretisationError
+from sdm_dolfinx.params import Param
 
 #: the variants of Nitsche's term: symmetric (1), incomplete (0), skew-symmetric (-1)
 THETAS = (1, 0, -1)
@@ -92,6 +93,11 @@ GAMMA0_NOTE = ("theta = 1 needs gamma0 above an inverse-inequality constant (pap
                "rod P1/P1, dt = 2e-3, the L2-in-time error of the contact stress 0.17 / 0.36 / 0.67 at gamma0 = 5 / 20 "
                "/ 200). GetFEM's demo uses gamma0 = 5 with theta = 0 on the P1 rod, with the same gamma = "
                "gamma0 E / h: nitsche_gamma0=5, nitsche_theta=0 is its Nitsche term")
+#: the treatment's options (``contact_options``)
+OPTIONS = (Param("nitsche_theta", DEFAULT_THETA, "Nitsche's theta: 1 (symmetric), 0 or -1 (skew-symmetric)",
+                 type=int, choices=THETAS, metavar="THETA", optional=True),
+           Param("nitsche_gamma0", DEFAULT_GAMMA0, "Nitsche's gamma0: gamma = gamma0 / h x the normal stiffness",
+                 type=float, low=0.0, low_strict=True, expect="a finite number > 0", metavar="G0", optional=True))
 
 
 def _degree(V):

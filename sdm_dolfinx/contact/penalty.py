@@ -42,10 +42,15 @@ from mpi4py import MPI
 import numpy as np
 
 from sdm_dolfinx.method.errors import DiscretisationError
+from sdm_dolfinx.params import Param
 from sdm_dolfinx.solvers import PenaltyNewton
 
 #: the default ``penalty``: epsilon = 1 x the mesh's stiffness per unit area at the contact (see the module)
 DEFAULT_PENALTY = 1.0
+#: the treatment's option (``contact_options``)
+OPTIONS = (Param("penalty", DEFAULT_PENALTY, "penalty parameter: epsilon = penalty x the mesh's stiffness per unit "
+                 "area at the contact, see docs/methods.md", type=float, low=0.0, low_strict=True,
+                 expect="a finite number > 0", metavar="EPS", optional=True),)
 
 
 def stiffness_scale(discretisation):

@@ -59,6 +59,22 @@ def check(value, label="quadrature_degree"):
     return [f"{label} must be an integer from 1 to {MAX_DEGREE}, {AUTO!r} or {ESTIMATED!r} (got {value!r})"]
 
 
+def parse(text):
+    """The option's value of a command-line word: an integer from 1 to :data:`MAX_DEGREE`,
+    :data:`AUTO` (None) or :data:`ESTIMATED`; ValueError (a phrase) otherwise."""
+    word = str(text).strip()
+    if word in (AUTO, ESTIMATED):
+        return None if word == AUTO else word
+    try:
+        value = int(word)
+    except ValueError:
+        raise ValueError(f"{text!r} is not an integer, {AUTO} or {ESTIMATED}") from None
+    if not 1 <= value <= MAX_DEGREE:
+        raise ValueError(f"{value} is out of range: from 1 to {MAX_DEGREE} (the largest Xiao-Gimbutas rule of "
+                         f"basix; the disc's entries stop changing at {CURVED_DEGREE})")
+    return value
+
+
 def is_affine(msh):
     """True when every cell of ``msh`` is an affine image of the reference cell: a simplex with
     a degree-1 geometry (P2 geometry, quadrilaterals and hexahedra are not)."""

@@ -2,7 +2,7 @@
 
 ``python -m sdm_dolfinx figures [--quick] [--out DIR] [--runs DIR]`` (or ``make figures``;
 the command line is :mod:`sdm_dolfinx.cli.figures`) runs the studies of the paper's
-sections 4 and 5 through :func:`sdm_dolfinx.run.launch` (each run keeps its
+sections 4 and 5 through :func:`sdm_dolfinx.run.simulate` (each run keeps its
 ``timeseries.csv``, ``run.json``, ``state.h5`` in ``--runs``), then reads those files back
 and writes, into ``--out``:
 

@@ -1,7 +1,7 @@
 """The study: which runs reproduce the paper's figures and tables, and their TOML files.
 
 A :class:`Run` is a problem name, its parameter values and the run options of
-:func:`sdm_dolfinx.run.launch`; :func:`make_study` lays out the runs behind every figure
+:func:`sdm_dolfinx.run.simulate`; :func:`make_study` lays out the runs behind every figure
 (the full study with the paper's parameters, or the quick smoke test), and
 :func:`paper_configurations` writes the full study's runs as the ``data/paper/*.toml``
 files that ``python -m sdm_dolfinx PROBLEM --config FILE`` reads.

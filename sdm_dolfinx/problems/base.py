@@ -6,12 +6,11 @@ runs: the membrane of the paper's section 4 and the disc of section 5 are two Pr
 a user-defined problem is a third (``docs/add_a_problem.md``).
 
 A :class:`ProblemSpec` declares a family of Problems once: its parameters (:class:`Param`:
-default, unit, bounds, help) and a ``build(comm, **values)`` function. The command line's
-options, the TOML keys, ``run.json`` and the rebuilding of a finished run for
-post-processing all come from that declaration, for the built-in problems and a user's
-problem file alike.
+default, unit, bounds, help; the declaration run options share, :mod:`sdm_dolfinx.params`) and
+a ``build(comm, **values)`` function. The command line's options, the TOML keys, ``run.json``
+and the rebuilding of a finished run for post-processing all come from that declaration, for
+the built-in problems and a user's problem file alike.
 """
-import math
 import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,6 +21,7 @@ from mpi4py import MPI
 import numpy as np
 
 from sdm_dolfinx.errors import SdmError
+from sdm_dolfinx.params import PARAM_TYPES, Param  # noqa: F401  (declared once for problems and runs)
 
 
 #: the time-series columns a Problem may add (``extra_columns``): sum of the normal multipliers,
@@ -158,102 +158,6 @@ class ProblemInputError(SdmError, ValueError):
     """Parameter values a problem refuses (the message may join several, with '; ')."""
 
 
-#: the types a parameter may have; ``point`` is a tuple of floats (its length that of the default)
-PARAM_TYPES = (float, int, str, bool, Path, "point")
-
-
-@dataclass(frozen=True)
-class Param:
-    """One declared parameter of a problem.
-
-    Attributes:
-        name: the keyword of ``build`` (a Python identifier); the command-line option is
-            ``--name`` with ``_`` written ``-``, as is the TOML key.
-        default: the value when none is given (None: optional, e.g. a mesh file).
-        help: one line for ``--help``.
-        unit: the unit, for ``--help`` and ``run.json`` (``"-"`` for none).
-        type: one of :data:`PARAM_TYPES` (default: the default's type, float for None).
-        low, high: inclusive bounds of a number (None: unbounded); ``low_strict`` makes the
-            lower bound exclusive (``> low``).
-        choices: the allowed values of a string.
-        flag: the option of a bool whose default is True, e.g. ``"no-obstacle"`` for
-            ``with_obstacle``: giving the flag sets the value to False.
-        metavar: the placeholder(s) in ``--help``.
-    """
-    name: str
-    default: object
-    help: str
-    unit: str = "-"
-    type: object = None
-    low: Optional[float] = None
-    high: Optional[float] = None
-    low_strict: bool = False
-    choices: Optional[tuple] = None
-    flag: Optional[str] = None
-    metavar: object = None
-
-    @property
-    def kind(self):
-        if self.type is not None:
-            return self.type
-        if isinstance(self.default, bool):
-            return bool
-        if isinstance(self.default, tuple):
-            return "point"
-        return type(self.default) if self.default is not None else float
-
-    @property
-    def option(self):
-        """The command-line option (and TOML key) without dashes."""
-        return self.flag or self.name.replace("_", "-")
-
-    def check(self, value, label):
-        """Messages for ``value`` out of type or bounds (empty when it is fine)."""
-        kind = self.kind
-        if value is None:
-            return [] if self.default is None else [f"{label} needs a value"]
-        if kind is bool:
-            return [] if isinstance(value, (bool, np.bool_)) else [f"{label} must be true or false (got {value!r})"]
-        if kind in (str, Path):
-            if self.choices is not None and value not in self.choices:
-                return [f"{label} must be one of {', '.join(map(str, self.choices))} (got {value!r})"]
-            return []
-        if kind == "point":
-            vals = list(value) if isinstance(value, (tuple, list, np.ndarray)) else None
-            if vals is None or len(vals) != len(self.default) or not all(_finite(v) for v in vals):
-                return [f"{label} must be {len(self.default)} finite numbers (got {value!r})"]
-            return []
-        if self.choices is not None and value not in self.choices:
-            return [f"{label} must be one of {', '.join(map(str, self.choices))} (got {value!r})"]
-        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
-            return [f"{label} must be {'an integer' if kind is int else 'a number'} (got {value!r})"]
-        if kind is int and not float(value).is_integer():
-            return [f"{label} must be an integer (got {value!r})"]
-        if not _finite(value):
-            return [f"{label} must be a finite number of magnitude <= 1e150 (got {value})"]
-        unit = f" {self.unit}" if self.unit not in ("-", "") else ""
-        if self.low is not None and (value <= self.low if self.low_strict else value < self.low):
-            return [f"{label} must be {'>' if self.low_strict else '>='} {_num(self.low)}{unit} (got {value})"]
-        if self.high is not None and value > self.high:
-            return [f"{label} must be <= {_num(self.high)}{unit} (got {value})"]
-        return []
-
-    def convert(self, value):
-        """``value`` in the declared type (after :meth:`check`)."""
-        if value is None:
-            return None
-        kind = self.kind
-        if kind == "point":
-            return tuple(float(v) for v in value)
-        if kind is Path:
-            return Path(value)
-        if kind is int:
-            return int(value)
-        if kind is float:
-            return float(value)
-        return value
-
-
 def one_line(e):
     """``Type: message`` of an exception on one line (its first non-empty line)."""
     text = next((ln.strip() for ln in str(e).splitlines() if ln.strip()), "")
@@ -266,17 +170,6 @@ def user_line(e, path):
     if isinstance(e, SyntaxError) and e.lineno and Path(e.filename or "").resolve() == Path(path):
         return f", line {e.lineno}"
     return f", line {frames[-1].lineno}" if frames else ""
-
-
-def _finite(v):
-    try:
-        return math.isfinite(float(v)) and abs(float(v)) <= 1e150   # squared in energies: stay finite
-    except (TypeError, ValueError):
-        return False
-
-
-def _num(x):
-    return f"{x:g}" if isinstance(x, float) else str(x)
 
 
 @dataclass
@@ -296,7 +189,7 @@ class ProblemSpec:
             the mesh the values make, counted without building it (``by``: the parameters
             that set its size, for messages), or None; the run's memory is estimated from it
             and a run that would not fit is refused before it starts
-            (:func:`sdm_dolfinx.run.launch.estimate_memory`).
+            (:func:`sdm_dolfinx.run.memory.estimate_memory`).
         source: the file that declared it (None for a built-in problem).
         exact: ``exact(problem) -> ExactSolution`` for a problem with a closed form (the
             comparison of methods measures errors against it), or None: an object with

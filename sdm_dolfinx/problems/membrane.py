@@ -82,7 +82,7 @@ def _check(values, label):
 
 def estimate(values):
     """The mesh the parameter ``values`` make, counted without building it (for the memory
-    estimate of a run, :func:`sdm_dolfinx.run.launch.estimate_memory`): vertices, edges and
+    estimate of a run, :func:`sdm_dolfinx.run.memory.estimate_memory`): vertices, edges and
     triangles, the components of u, and the parameters that set the size (for messages)."""
     N = values["N"]
     crossed = values["diagonal"] == "crossed"           # a centre vertex and 4 triangles per square

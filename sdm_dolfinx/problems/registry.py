@@ -16,10 +16,9 @@ from mpi4py import MPI
 from sdm_dolfinx.problems.base import ProblemInputError, ProblemSpec, one_line, user_line
 
 _REGISTRY = {}
-#: the keys a ProblemSpec's ``defaults`` may hold: the run options, and the unit of dt and T
-DEFAULT_KEYS = ("pair", "scheme", "dt", "T", "mass", "vi_solver", "linear", "write_every", "checkpoint_every",
-                "quadrature_degree", "friction", "mu", "tresca_threshold", "constrain", "contact", "penalty",
-                "nitsche_theta", "nitsche_gamma0", "hht_alpha", "restitution", "time_unit")
+#: the keys a ProblemSpec's ``defaults`` may hold: the run options a problem may default (those
+#: declared ``problem_default`` in :mod:`sdm_dolfinx.run.options`), and the unit of dt and T
+DEFAULT_KEYS = ("pair", "scheme", "dt", "T", "time_unit")
 
 
 def register(spec):

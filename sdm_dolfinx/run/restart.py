@@ -14,9 +14,11 @@ from pathlib import Path
 from sdm_dolfinx.io import checkpoint
 from sdm_dolfinx.io.checkpoint import CheckpointError
 from sdm_dolfinx.io.run_files import agree
+from sdm_dolfinx.run.options import IDENTITY
 
-#: what must be the same for a checkpoint to continue a run
-IDENTITY_KEYS = ("problem", "pair", "mass", "scheme", "dt", "vi_solver", "linear", "ranks")
+#: what must be the same for a checkpoint to continue a run: the problem, the run options
+#: declared part of its identity, the number of ranks
+IDENTITY_KEYS = ("problem", *IDENTITY, "ranks")
 
 
 def check_identity(saved, now):

@@ -1,373 +1,110 @@
-"""The time loop: Problem + Pair + scheme -> time series (and files, if asked).
-
-:func:`simulate` is the loop; the pieces it drives live beside it: the integrator (one
-step), :class:`~sdm_dolfinx.run.result.TimeSeries` (one row per step),
-:class:`~sdm_dolfinx.io.run_files.RunFiles` (the folder), :mod:`.restart` (checkpoints) and
-:mod:`.signals` (stopping cleanly).
-"""
-import time
-import uuid
-from pathlib import Path
+"""The one way to run: :func:`simulate` (and :func:`launch`, its deprecated former name for a
+declared problem)."""
+import warnings
+from typing import Any, Callable, Mapping, Optional, Union
 
 from mpi4py import MPI
-from petsc4py import PETSc
 
-import numpy as np
-
-from sdm_dolfinx import compat
-from sdm_dolfinx.contact import friction as _friction
-from sdm_dolfinx.errors import SdmError
-from sdm_dolfinx.method.discretisation import Discretisation
-from sdm_dolfinx.solvers import VIError
-from sdm_dolfinx.errors import StepError
-from sdm_dolfinx.run.integrator import Integrator
-from sdm_dolfinx.run.observe import Observer
-from sdm_dolfinx.mpiutil import atomic_write_text, json_text
-from sdm_dolfinx.run import restart as _restart
-from sdm_dolfinx.io import checkpoint
-from sdm_dolfinx.io.folder import FolderLock, RunFolderError, read_info, same_run_as_checked
-from sdm_dolfinx.run.probes import ConstraintProbe, PointProbe
-from sdm_dolfinx.io.run_files import RunFileError, RunFiles
-from sdm_dolfinx.run.result import Result, TimeSeries, num_steps
-from sdm_dolfinx.run.signals import Interrupted, StopFlag
-from sdm_dolfinx.run.solver_state import SolverHistory
+from sdm_dolfinx.problems import Problem
+from sdm_dolfinx.run import options as run_options
+from sdm_dolfinx.run.loop import execute
+from sdm_dolfinx.run.options import RunInputError
+from sdm_dolfinx.run.planning import check_folder, check_run
+from sdm_dolfinx.run.result import Result
 
 
-class SolverSetupError(SdmError, RuntimeError):
-    """The step solver could not be set up (nothing was written)."""
-
-
-def simulate(problem, pair="P1+/P0", scheme="midpoint", dt=1e-3, T=0.8, mass=None, vi_solver="ssn",
-             linear="auto", out=None, write_every=None, progress=False, petsc_options=None,
-             extra_info=None, checkpoint_every=None, restart=False, handle_signals=False, on_step=None,
-             constraint_tol=1e-8, folder_seen=None, quadrature_degree=None, friction=None, mu=None,
-             tresca_threshold=None, constrain="vertices", contact="exact", penalty=None, nitsche_theta=None,
-             nitsche_gamma0=None, hht_alpha=None, restitution=None, observe=None):
-    """Run ``problem`` with ``pair`` and ``scheme`` from t = 0 to T.
+def simulate(problem: Any = None, params: Optional[Mapping[str, Any]] = None, *, out=None, overwrite: bool = False,
+             restart: bool = False, comm=None,
+             pair: Any = None, scheme: Optional[str] = None, dt: Optional[float] = None, T: Optional[float] = None,
+             mass: Optional[str] = None, vi_solver: Optional[str] = None, linear: Optional[str] = None,
+             quadrature_degree: Union[int, str, None] = None, friction: Optional[str] = None,
+             constrain: Optional[str] = None, contact: Optional[str] = None, write_every: Optional[int] = None,
+             checkpoint_every: Optional[int] = None, scheme_options: Optional[Mapping[str, Any]] = None,
+             contact_options: Optional[Mapping[str, Any]] = None,
+             friction_options: Optional[Mapping[str, Any]] = None,
+             progress: bool = False, handle_signals: bool = False, on_step: Optional[Callable] = None,
+             observe: Optional[Callable] = None, petsc_options: Optional[Mapping[str, Any]] = None,
+             extra_info: Optional[Mapping[str, Any]] = None, constraint_tol: float = 1e-8,
+             **deprecated: Any) -> Result:
+    """Run a problem from t = 0 to T; every input is checked before anything is built or written.
 
     Args:
-        problem: a :class:`sdm_dolfinx.problems.Problem`.
-        pair: pair name (see :data:`sdm_dolfinx.method.pairs.PAIRS`).
-        scheme: a registered time scheme (:mod:`sdm_dolfinx.schemes`).
-        dt, T: time step and final time.
-        mass: C treatment (``None``: the pair's default).
-        quadrature_degree: quadrature degree of every form (None: UFL's exact estimate on affine
-            simplices, 12 on curved cells; ``"estimated"``; an integer), see
-            :mod:`sdm_dolfinx.method.quadrature`; the degree used is run.json's ``quadrature_degree``.
-        friction, mu, tresca_threshold: friction at the constrained vertices: ``None``/``"none"``,
-            ``"tresca"`` (``tresca_threshold``: a stress, times each vertex's lumped boundary
-            measure) or ``"coulomb"`` (coefficient ``mu``), see :mod:`sdm_dolfinx.contact.friction`.
-        constrain, contact, penalty, nitsche_theta, nitsche_gamma0, hht_alpha, restitution: the
-            method options of docs/methods.md (where K^h acts, the contact treatment, the schemes'
-            parameters; None: their defaults).
-        vi_solver, linear, petsc_options: the step solver (see :mod:`sdm_dolfinx.solvers`).
-        out: output folder (``timeseries.csv``, ``run.json``, ``solution.xdmf``) or None.
-        write_every: XDMF output every K steps (default 10 when ``out`` is given).
+        problem: a :class:`~sdm_dolfinx.problems.Problem` (built: ``membrane.problem(N=10)``), or
+            a declared problem: a registered name (``"membrane"``), a
+            :class:`~sdm_dolfinx.problems.ProblemSpec` or the path of a problem file, built here
+            from ``params`` and recorded in ``run.json`` so that a restart rebuilds it (not needed
+            with ``restart``: the run in ``out`` says which).
+        params: a declared problem's parameter values (its names; the others at their defaults).
+        out: the output folder (``timeseries.csv``, ``run.json``, ``solution.xdmf``, ``state.h5``),
+            or None: nothing written. A folder holding a run is refused unless ``overwrite``.
+        overwrite: replace the run in ``out``.
+        restart: continue the run in ``out`` from its checkpoint (same problem, parameters, options
+            and ranks; only ``checkpoint_every`` may differ).
+        comm: the ranks of a declared problem (default ``MPI.COMM_WORLD``); a Problem's are its mesh's.
+        pair, scheme, dt, T, mass, vi_solver, linear, quadrature_degree, friction, constrain, contact,
+            write_every, checkpoint_every: the run options (:data:`sdm_dolfinx.run.options.TABLE`:
+            their values and defaults; None: the default, for ``pair``, ``scheme``, ``dt`` and ``T``
+            a declared problem's own). ``pair`` may be a :class:`~sdm_dolfinx.method.pairs.Pair`.
+        scheme_options, contact_options, friction_options: the options of the chosen scheme,
+            contact treatment and friction law, as each declares them (docs/methods.md):
+            ``{"hht_alpha": -0.1}``, ``{"penalty": 1e5}``, ``{"mu": 0.3}``; one given to a method
+            not chosen is refused (it would be ignored).
         progress: print a progress line (rank 0) every few seconds.
-        checkpoint_every: write ``out/checkpoint.npz`` every K steps (and at the end).
-        restart: continue the run in ``out`` from its checkpoint (same parameters and ranks).
         handle_signals: on SIGINT/SIGTERM stop after the current step, checkpoint, raise
-            :class:`Interrupted` (the handlers are installed first thing: a signal during the
-            set-up stops the run before anything is written, one after the files are created
-            leaves a checkpoint).
-        on_step: ``f(step, row)`` called after every step with the time-series row (plus
-            ``linear_its_total``, the cumulative linear iterations); returning True requests
-            a stop (as a signal would).
+            :class:`~sdm_dolfinx.run.Interrupted` (a signal during the set-up stops the run before
+            anything is written).
+        on_step: ``f(step, row)`` after every step with the time-series row (plus
+            ``linear_its_total``); returning True requests a stop (as a signal would).
         observe: ``f(state)`` on every rank after row n (n = 0 too) of the time series, with a read-only
             :class:`~sdm_dolfinx.run.observe.State` (docs/api.md; ``f(n, t, U, V, integ)``: deprecated).
-        folder_seen: ``{"run_id": ...}`` that :func:`sdm_dolfinx.io.folder.check_out` saw in
-            ``out`` (None: no check); checked again once the folder is locked.
-        constraint_tol: a constrained iterate below its bound by more than this (relative
-            to the largest |bound|, or absolute when the bounds are 0) stops the run.
+        petsc_options: PETSc options of this run's step solver (keys without prefix).
+        extra_info: entries added to ``run.json``.
+        constraint_tol: a constrained iterate below its bound by more than this (relative to the
+            largest |bound|, or absolute when the bounds are 0) stops the run.
+        deprecated: the flat spelling of a method's option (``mu=0.3``, ``penalty=1e5``,
+            ``hht_alpha=-0.1``, ...): still accepted, with a FutureWarning naming the grouped one.
 
     Returns:
-        :class:`Result`.
+        :class:`~sdm_dolfinx.run.result.Result`.
 
     Raises:
-        StepError: a step failed (the outputs up to the last good step stay readable);
-            :class:`~sdm_dolfinx.io.run_files.RunFileError` (a StepError) when a file could not
-            be written (no space left, a file deleted or replaced during the run).
-        Interrupted: a stop was requested; a checkpoint was written first.
-        checkpoint.CheckpointError: ``restart`` without a matching checkpoint.
-        folder.FolderInUseError: another process runs in ``out`` (nothing written).
+        RunInputError: an input refused (every reason, one line; nothing written).
+        StepError: a step failed (the outputs up to the last good step stay readable).
+        Interrupted: a stop was requested; with ``out`` a checkpoint was written first.
+        CheckpointError: ``restart`` without a matching checkpoint.
     """
-    wall0 = time.perf_counter()
-    run_options = {"pair": pair if isinstance(pair, str) else pair.name, "scheme": scheme, "dt": dt, "T": T,
-                   "mass": mass, "vi_solver": vi_solver, "linear": linear, "write_every": write_every,
-                   "checkpoint_every": checkpoint_every, "quadrature_degree": quadrature_degree,
-                   "friction": friction, "mu": mu, "tresca_threshold": tresca_threshold}
-    method = {"constrain": constrain, "contact": contact, "penalty": penalty, "nitsche_theta": nitsche_theta,
-              "nitsche_gamma0": nitsche_gamma0, "hht_alpha": hht_alpha, "restitution": restitution}
-    run_options.update(method)
-    law = _friction.make(friction, mu, tresca_threshold)        # ValueError: options that do not agree
-    stop = StopFlag(handle_signals)      # before anything is built or written
-    loop = None
-    kept = _kept_choice(out, linear, problem.mesh.comm) if restart else None
-    try:
-        loop = _Loop(problem, pair, scheme, dt, T, mass, vi_solver, linear, petsc_options, wall0, quadrature_degree,
-                     law, method, kept)
-        loop.observe = Observer(observe, loop.comm) if observe is not None else None     # or ObserveError
-        signum = stop.agreed(loop.comm)
-        if signum:
-            raise Interrupted("interrupted during the set-up, before anything was written", signum)
-        loop.open(out, restart, write_every, {"run_options": run_options, **(extra_info or {})}, folder_seen)
-        loop.run(stop, progress, on_step, checkpoint_every, constraint_tol)
-        return loop.finish()
-    finally:
-        if loop is not None:
-            loop.close()
-        stop.restore()
+    given = run_options.collect(
+        {"pair": pair, "scheme": scheme, "dt": dt, "T": T, "mass": mass, "vi_solver": vi_solver, "linear": linear,
+         "quadrature_degree": quadrature_degree, "friction": friction, "constrain": constrain, "contact": contact,
+         "write_every": write_every, "checkpoint_every": checkpoint_every, "scheme_options": scheme_options,
+         "contact_options": contact_options, "friction_options": friction_options, **deprecated})
+    session = dict(progress=progress, handle_signals=handle_signals, on_step=on_step, observe=observe,
+                   petsc_options=petsc_options, extra_info=extra_info, constraint_tol=constraint_tol)
+    if isinstance(problem, Problem):
+        return _run_built(problem, params, given, out, overwrite, restart, comm, session)
+    comm = MPI.COMM_WORLD if comm is None else comm
+    the_plan = check_run(problem, params, given, out=out, overwrite=overwrite, restart=restart, comm=comm)
+    return the_plan.run(comm, **session)
 
 
-def _kept_choice(out, linear, comm):
-    """(strategy, reason) of the run in ``out`` when ``linear`` is ``auto``, else None: in 3-D
-    ``auto`` decides by the memory free when the run starts, and a restart on a busier machine must
-    continue on the same path (a different solver differs at round-off, or worse)."""
-    if linear != "auto" or out is None:
-        return None
-    try:
-        info = read_info(out, comm)
-    except RunFolderError:          # the restart itself says what is missing
-        return None
-    chosen = info.get("linear_strategy")
-    if chosen not in ("schur", "amg", "cg-gamg"):
-        return None
-    return chosen, f"auto, kept from the run's start ({info.get('linear_strategy_reason')})"
+def _run_built(problem, params, given, out, overwrite, restart, comm, session):
+    """:func:`simulate` of a built Problem: the same checks but of its parameters (built already)."""
+    if params:
+        raise RunInputError(f"params are the parameters of a declared problem; problem {problem.name!r} is built "
+                            f"already (give its name, or build it with these values)")
+    if comm is not None and MPI.Comm.Compare(comm, problem.mesh.comm) not in (MPI.IDENT, MPI.CONGRUENT):
+        raise RunInputError(f"comm is not the ranks of problem {problem.name!r}'s mesh: leave it out")
+    if restart and overwrite:
+        raise RunInputError("a restart continues the run in out; remove overwrite")
+    opts = run_options.complete(given)
+    run_options.check(opts)
+    seen = None if restart else check_folder(out, overwrite, problem.mesh.comm)
+    return execute(problem, opts, out=out, restart=restart, folder_seen=seen, **session)
 
 
-class _Loop:
-    """The state of one run between :func:`simulate`'s phases (set-up, files, steps, end)."""
-
-    def __init__(self, problem, pair, scheme, dt, T, mass, vi_solver, linear, petsc_options, wall0,
-                 quadrature_degree=None, friction=None, method=None, kept=None):
-        self.wall0, self.dt, self.comm = wall0, dt, problem.mesh.comm
-        method = dict(method or {})
-        self.discretisation = d = Discretisation(problem, pair, mass, quadrature_degree,
-                                                 constrain=method.get("constrain") or "vertices")
-        try:
-            self.integ = Integrator(
-                d, scheme, dt, vi_solver, kept[0] if kept else linear, petsc_options, friction,
-                scheme_options={k: method.get(k) for k in ("hht_alpha", "restitution")},
-                contact=method.get("contact") or "exact",
-                contact_options={k: method.get(k) for k in ("penalty", "nitsche_theta", "nitsche_gamma0")})
-        except (PETSc.Error, VIError) as e:  # e.g. a -sdm_ option PETSc (or the step solver) does not accept
-            raise SolverSetupError(f"PETSc could not set up the step solver: {_petsc_message(e)}") from None
-        if kept:
-            self.integ.linear_reason = kept[1]
-        self.nsteps = num_steps(T, dt)
-        self.setup_time = time.perf_counter() - wall0
-        U, V = d.initial_state()
-        self.U, self.V = U, self.integ.initial_velocity(V)
-        self.cprobe = ConstraintProbe(d, problem.probe)
-        probe = PointProbe(d.W, problem.probe, problem.constraint_component)
-        integ = self.integ
-        self.series = TimeSeries(integ, d, problem, probe, self.cprobe, self.nsteps,
-                                 friction=integ.friction is not None, contact_energy=integ.treatment is not None)
-        self.gap_imposed, self.gap_end = np.zeros(self.nsteps), np.zeros(self.nsteps)
-        self.lam = np.zeros(len(d.cdofs))
-        self.fingerprint = checkpoint.mesh_fingerprint(problem.mesh)
-        self.identity = {"problem": problem.describe(), "pair": d.pair.name, "mass": d.mass, "scheme": scheme,
-                         "dt": dt, "vi_solver": vi_solver, "linear": linear, "ranks": self.comm.size,
-                         "mesh": self.fingerprint,
-                         **({"friction": friction.describe()} if friction is not None and friction.on else {}),
-                         **_method_identity(method)}
-        self.fields_of = {"U": (d.W, self.U), "V": (d.H if self.integ.block else d.W, self.V)}
-        self.history = SolverHistory(self.integ)
-        self.files = self.lock = None
-        self.observe = None
-
-    def open(self, out, restart, write_every, extra_info, folder_seen=None):
-        """The folder's lock, run.json's first version, the restart (if any) and the files
-        (if ``out``)."""
-        d, integ = self.discretisation, self.integ
-        self.info = {**self.identity, "T": self.nsteps * self.dt, "steps": self.nsteps, **d.dims(),
-                     "quadrature_degree": d.quadrature_degree,
-                     "versions": compat.versions(), "displacement_reported": "U^{n+1} (end of step)",
-                     "constraint_imposed_on": integ.time_scheme.constrained,
-                     "lambda_probe": {"vertex": self.cprobe.vertex[:2].tolist(),
-                                      "definition": "nodal multiplier / lumped nodal measure (>= 0: obstacle pushes)"},
-                     "solver_options_prefix": getattr(integ.solver, "prefix", None),
-                     "linear_strategy": getattr(integ, "linear_strategy", None),
-                     "linear_strategy_reason": getattr(integ, "linear_reason", None),
-                     "status": "running", **extra_info}
-        self.out, self.restarted, self.first = out, bool(restart), 0
-        if out is not None:
-            self.lock = FolderLock(out, self.comm)      # a second process in this folder stops here
-            if folder_seen is not None and not restart:
-                same_run_as_checked(out, folder_seen["run_id"], self.comm)
-        if restart and getattr(integ, "stateful", False):
-            raise checkpoint.CheckpointError(
-                f"scheme {integ.scheme!r} keeps state between steps that a checkpoint does not hold (U and V "
-                f"only): it cannot restart; rerun from t = 0")
-        if restart:
-            self.first, self.run_id, outputs = _restart.resume(out, self.identity, self.fields_of, integ,
-                                                               self.nsteps, self.comm, self.history)
-            self.info["restarted_from_step"] = self.first
-        else:
-            self.run_id = self.comm.bcast(uuid.uuid4().hex if self.comm.rank == 0 else None, root=0)
-        self.info["run_id"] = self.run_id
-        if out is not None:
-            try:
-                self.files = RunFiles(out, d, self.series, self.info, self.fingerprint,
-                                      (self.first, outputs) if restart else None, write_every, self.dt,
-                                      block=integ.block, friction=integ.friction is not None)
-            except RunFileError as e:
-                self._say_failed(e)
-                raise
-
-    def record(self, n, its, n_active, step=None):
-        integ = self.integ
-        row = self.series.record(n, n * self.dt, self.U, self.V, self.lam, its, n_active, step,
-                                 linear_its_total=integ.linear_its, slip=integ.slip)
-        if self.files is not None:
-            self.files.row(row)
-        if self.observe is not None:
-            self.observe(n, n * self.dt, self.U, self.V, self.lam, integ)
-        return row
-
-    def fields(self, n, lam):
-        """Write the fields of step ``n`` (the state's, with the contact forces ``lam``)."""
-        integ = self.integ
-        self.files.fields(n, self.U, self.V, lam, integ.lam_t if integ.friction is not None else None,
-                          integ.slipping)
-
-    def run(self, stop, progress, on_step, checkpoint_every, constraint_tol):
-        """Steps first..nsteps; a failed step leaves the files at the last good step."""
-        files, n = self.files, self.first
-        scale = max(self.comm.allreduce(float(np.max(np.abs(self.discretisation.lb), initial=0.0)), op=MPI.MAX), 1.0)
-        saved = None
-        try:
-            if not self.restarted:
-                self.record(0, 0, 0)
-                if files is not None:
-                    self.fields(0, self.lam)
-            elif files is not None and files.state_missing:
-                files.state_write(self.U, self.V, self.first)  # a new state.h5 starts here
-            signum = stop.agreed(self.comm)
-            if signum and self.first < self.nsteps:     # a signal during the set-up: the files exist now
-                self.interrupted(self.first, signum, checkpointed=False)
-            if progress and self.comm.rank == 0 and self.info["linear"] == "auto":
-                info = self.info
-                print(f"  linear strategy {info['linear_strategy']} ({info['linear_strategy_reason']})", flush=True)
-            last_print = time.perf_counter()
-            for n in range(self.first, self.nsteps):
-                # the state before each step, so that a failed run's files end with its last good step
-                saved = (self.U.array.copy(), self.V.array.copy(), self.lam) if files is not None else None
-                row = self.step(n, scale * constraint_tol)
-                if progress and self.comm.rank == 0 and (time.perf_counter() - last_print > 5 or n + 1 == self.nsteps):
-                    last_print = time.perf_counter()
-                    print(f"  step {n + 1}/{self.nsteps}  t = {(n + 1) * self.dt:.4g}  energy = {row['energy']:.6g}  "
-                          f"active = {row['n_active']}  newton = {row['newton_its']}  "
-                          f"[{last_print - self.wall0:.1f} s]", flush=True)
-                requested = bool(on_step(n + 1, row)) if on_step is not None else False
-                signum = stop.agreed(self.comm, requested)
-                if files is not None and checkpoint_every and ((n + 1) % checkpoint_every == 0
-                                                               or n + 1 == self.nsteps or signum):
-                    self.checkpoint(n + 1)
-                if signum and n + 1 < self.nsteps:
-                    self.interrupted(n + 1, signum, checkpointed=bool(checkpoint_every))
-        except StepError as e:
-            self.failed(n, e, saved)
-            raise
-
-    def step(self, n, tol):
-        """Step n -> n + 1: solve, check the constraint, record (and write the fields if due)."""
-        info = self.integ.step(self.U, self.V, n, n * self.dt)
-        self.lam = self.integ.lam.copy()
-        self.gap_imposed[n], self.gap_end[n] = info["gap_imposed"], info["gap_end"]
-        if self.gap_imposed[n] < -tol:
-            raise StepError(f"step {n + 1} (t = {(n + 1) * self.dt:.6g}): the constraint is violated by "
-                            f"{-self.gap_imposed[n]:.3e} on the constrained iterate")
-        row = self.record(n + 1, info["its"], info["n_active"], info)
-        if self.files is not None and self.files.due(n + 1, self.nsteps):
-            self.fields(n + 1, self.lam)
-        return row
-
-    def checkpoint(self, n):
-        _restart.save(self.out, self.identity, n, self.dt, self.run_id, self.fields_of, self.integ, self.comm,
-                      self.files, self.history)
-
-    def interrupted(self, n, signum, checkpointed):
-        msg = f"interrupted after step {n} (t = {n * self.dt:.6g})"
-        self.info.update(status="interrupted", interrupted_at_step=n, wall_time=time.perf_counter() - self.wall0)
-        if self.files is not None and getattr(self.integ, "stateful", False):
-            msg += f"; scheme {self.integ.scheme!r} cannot restart (state beyond U and V): rerun from t = 0"
-            self.files.update()
-        elif self.files is not None:
-            if not checkpointed:
-                self.checkpoint(n)
-            msg += f"; checkpoint written, continue with: python -m sdm_dolfinx run --restart {self.out}"
-            self.files.update()
-        raise Interrupted(msg, signum)
-
-    def failed(self, n, error, saved):
-        """Step n was the last good one: run.json says so, and its fields are written unless they are.
-
-        After a file error (:class:`RunFileError`) the last good step is the last row in the
-        time series, and nothing more is written but run.json (for which a full disc gets
-        the lock's reserve back)."""
-        self.info.update(status="failed", error=str(error), wall_time=time.perf_counter() - self.wall0)
-        if self.files is None:
-            return
-        if isinstance(error, RunFileError):
-            self._say_failed(error, last_good_step=self.files.last_row)
-            return
-        try:
-            if saved is not None and n > self.first and n % self.files.write_every:
-                self.U.array[:], self.V.array[:] = saved[0], saved[1]
-                self.fields(n, saved[2])
-            self.files.update(last_good_step=n)
-        except RunFileError as e:           # the step's error is the one to report
-            self._say_failed(e, last_good_step=self.files.last_row, error=str(error))
-
-    def _say_failed(self, error, **entries):
-        """run.json says "failed" with ``error`` (best effort: the error is what matters)."""
-        if getattr(error, "no_space", False) and self.lock is not None:
-            self.lock.free_reserve()
-        self.info.update(status="failed", error=str(error), wall_time=time.perf_counter() - self.wall0)
-        self.info.update(entries)
-        if self.comm.rank == 0:
-            try:
-                atomic_write_text(Path(self.out) / "run.json", json_text(self.info))
-            except OSError:
-                pass
-        self.comm.Barrier()
-
-    def close(self):
-        """Close the files and unlock the folder (also after an error)."""
-        if self.files is not None:
-            self.files.close()
-        if self.lock is not None:
-            self.lock.release()
-            self.lock = None
-
-    def finish(self):
-        gi, ge = self.gap_imposed[self.first:], self.gap_end[self.first:]
-        self.info.update(status="finished", wall_time=time.perf_counter() - self.wall0, setup_time=self.setup_time,
-                         newton_its_total=int(self.series.data["newton_its"].sum()),
-                         linear_its_total=int(self.integ.linear_its),
-                         min_gap_imposed=float(gi.min(initial=np.inf)), min_gap_end=float(ge.min(initial=np.inf)),
-                         **self.series.summary(self.first))
-        if self.files is not None:
-            try:
-                self.files.update()
-            except RunFileError as e:
-                self._say_failed(e)
-                raise
-            self.files.tidy()
-        self.integ.destroy()
-        return Result(self.series.data, self.info, self.gap_imposed, self.gap_end, self.U, self.V, self.discretisation)
-
-
-def _method_identity(method):
-    """The method options that differ from today's defaults (constraint at the vertices, exact
-    contact, no scheme parameter): they join the run's identity (run.json, checkpoints)."""
-    defaults = {"constrain": "vertices", "contact": "exact"}
-    return {k: v for k, v in method.items() if v is not None and v != defaults.get(k)}
-
-
-def _petsc_message(e):
-    """The informative line of a PETSc error (its last non-empty line) and its code."""
-    lines = [ln.split("] ", 1)[-1].strip() for ln in str(e).splitlines() if ln.strip()]
-    return f"{lines[-1] if lines else 'unknown error'} (PETSc error {getattr(e, 'ierr', '?')})"
-
+def launch(problem=None, params=None, **kwargs):
+    """Deprecated: :func:`simulate` runs a declared problem the same way (same arguments); a
+    FutureWarning says so."""
+    warnings.warn("sdm_dolfinx.run.launch() is deprecated: call sdm_dolfinx.simulate() with the same arguments",
+                  FutureWarning, stacklevel=2)
+    return simulate(problem, params, **kwargs)

@@ -5,9 +5,9 @@ step matrix K, and updates (U, V) from X. The :class:`~sdm_dolfinx.run.integrato
 calls its hooks in this order (``integ`` is the Integrator, which offers the products with M
 and A, the load and the Dirichlet lifting):
 
-1. :meth:`configure` (the scheme's parameters: ``scheme_options``), then :meth:`refuse` (one
-   line: a combination the scheme cannot run) and :meth:`setup` (what K needs, e.g. the mass
-   solver of an explicit scheme);
+1. :meth:`configure` (the scheme's options, declared in :attr:`Scheme.options`:
+   ``scheme_options``), then :meth:`refuse` (one line: a combination the scheme cannot run)
+   and :meth:`setup` (what K needs, e.g. the mass solver of an explicit scheme);
 2. :meth:`step_matrix` (None: K = c_M M + c_A A with :meth:`coefficients`), the step solver;
 3. :meth:`prepare` (once K, the solver and the contact treatment exist: the CFL check);
 4. every step: :meth:`start` (the first step of a stateful scheme), :meth:`rhs`, the solve,
@@ -18,6 +18,8 @@ and b = L + M (alpha Vbar^n + alpha^2 U^n) (midpoint, backward Euler), which onl
 ``factor``, ``displacement``, ``velocity`` and ``velocity_block``.
 """
 import copy
+
+from sdm_dolfinx.params import values_of
 
 
 class Scheme:
@@ -30,7 +32,9 @@ class Scheme:
         constrained: the iterate the constraint is imposed on (for ``run.json``).
         load_theta: a time-dependent load of step n -> n+1 is evaluated at t_n + load_theta dt
             (None: the scheme does not say, and refuses time-dependent loads).
-        parameters: the ``scheme_options`` keys the scheme reads and their defaults.
+        options: the scheme's options (``scheme_options``), each a
+            :class:`~sdm_dolfinx.params.Param` (default, bounds, help): the run options, the
+            command line's ``--name`` and the checks of a value all derive from it.
         explicit: the step matrix holds no stiffness (c_A = 0): the step is CFL-bounded.
         stateful: the scheme keeps state between steps beyond (U, V) (a checkpoint of U and V
             cannot restart it).
@@ -39,26 +43,22 @@ class Scheme:
     factor = None
     constrained = None
     load_theta = None
-    parameters = {}
+    options = ()
     explicit = False
     stateful = False
 
     # ------------------------------------------------------------------ set-up
     def configure(self, options=None):
         """A copy of this scheme for one run, with ``options`` (a dict; None values: the
-        defaults of :attr:`parameters`). ValueError (one line) on a parameter this scheme
-        does not take or a value out of its range."""
-        given = {k: v for k, v in dict(options or {}).items() if v is not None}
-        unknown = sorted(set(given) - set(self.parameters))
-        if unknown:
-            takes = f"it takes {', '.join(self.parameters)}" if self.parameters else "it takes none"
-            raise ValueError(f"scheme {self.name!r} has no parameter {', '.join(unknown)} ({takes})")
+        defaults of :attr:`options`). OptionError (a ValueError, one line) on an option this
+        scheme does not declare or a value its declaration refuses."""
+        values = values_of(f"scheme {self.name}", self.options, dict(options or {}))
         scheme = copy.copy(self)
-        scheme.set_parameters(**{**self.parameters, **given})
+        scheme.set_parameters(**values)
         return scheme
 
     def set_parameters(self, **values):
-        """Set (and check) the values of :attr:`parameters` on this copy."""
+        """Set the values of :attr:`options` (checked by their declarations) on this copy."""
         for k, v in values.items():
             setattr(self, k, v)
 

@@ -27,26 +27,24 @@ Choices taken where the literature leaves one open:
   (1 + alpha) L(t_{n+1}) - alpha L(t_n) for a load linear in time (second order otherwise);
 * the acceleration state, the initial acceleration and a singular M: as Newmark's.
 """
+from sdm_dolfinx.params import Param
 from sdm_dolfinx.schemes.newmark import Newmark
 
 #: the admissible range of alpha (Hilber et al.: second order and unconditionally stable)
 ALPHA_RANGE = (-1.0 / 3.0, 0.0)
+#: the scheme's option (0 is Newmark's scheme)
+HHT_ALPHA = Param("hht_alpha", -0.1, "the HHT scheme's alpha in [-1/3, 0] (second order and unconditionally "
+                  "stable there; 0 is Newmark's scheme)", type=float, low=ALPHA_RANGE[0], high=ALPHA_RANGE[1],
+                  expect="a number in [-1/3, 0]", metavar="ALPHA", optional=True)
 
 
 class HHT(Newmark):
     name = "hht"
     constrained = "U^{n+1}"
-    parameters = {"hht_alpha": -0.1}
+    options = (HHT_ALPHA,)
 
     def set_parameters(self, hht_alpha):
-        lo, hi = ALPHA_RANGE
-        try:
-            alpha = float(hht_alpha)
-        except (TypeError, ValueError):
-            raise ValueError(f"hht_alpha must be a number in [-1/3, 0], got {hht_alpha!r}") from None
-        if not lo <= alpha <= hi:
-            raise ValueError(f"hht_alpha = {alpha:g} is out of [-1/3, 0] (HHT-alpha is second order and "
-                             f"unconditionally stable there; 0 is Newmark's scheme)")
+        alpha = float(hht_alpha)
         self.hht = alpha
         self.beta = (1.0 - alpha) ** 2 / 4.0
         self.gamma = (1.0 - 2.0 * alpha) / 2.0
@@ -55,4 +53,4 @@ class HHT(Newmark):
 
 
 SCHEME = HHT()
-SCHEME.set_parameters(**HHT.parameters)
+SCHEME.set_parameters(hht_alpha=HHT_ALPHA.default)

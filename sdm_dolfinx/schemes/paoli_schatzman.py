@@ -29,22 +29,22 @@ Choices taken where the literature leaves one open:
 
 dt is refused beyond the CFL bound 2/omega_max of M^-1 A, as central differences'.
 """
+from sdm_dolfinx.params import Param
 from sdm_dolfinx.schemes.explicit import ExplicitScheme
+
+#: the scheme's option: the restitution coefficient e
+RESTITUTION = Param("restitution", 0.0, "restitution coefficient in [0, 1] (0: inelastic impact, 1: elastic "
+                    "bounce)", type=float, low=0.0, high=1.0, expect="a number in [0, 1]", metavar="E", optional=True)
 
 
 class PaoliSchatzman(ExplicitScheme):
     name = "paoli-schatzman"
     constrained = "(U^{n+1} + e U^{n-1})/(1 + e)"
-    parameters = {"restitution": 0.0}
+    options = (RESTITUTION,)
     restitution = 0.0
 
     def set_parameters(self, restitution):
-        try:
-            e = float(restitution)
-        except (TypeError, ValueError):
-            raise ValueError(f"restitution must be a number in [0, 1], got {restitution!r}") from None
-        if not 0.0 <= e <= 1.0:
-            raise ValueError(f"restitution = {e:g} is out of [0, 1] (0: inelastic impact, 1: elastic bounce)")
+        e = float(restitution)
         self.restitution, self.mass_factor, self.factor = e, 1.0 + e, (1.0 + e) ** 0.5
 
     def rhs(self, integ, U, V, L, t):

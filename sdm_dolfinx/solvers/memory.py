@@ -42,7 +42,7 @@ SHARED = 0.45
 def run_bytes(n, dim, factorised=True):
     """Estimated peak memory (bytes, one rank, BYTES_PER_PROCESS excluded) of a run with dim W^h
     = ``n`` in ``dim`` dimensions, factorising the step matrix or not; None for dim < 3 (the
-    per-pair constants of :mod:`sdm_dolfinx.run.launch` apply)."""
+    per-pair constants of :mod:`sdm_dolfinx.run.memory` apply)."""
     if dim < 3:
         return None
     if not factorised:

@@ -24,11 +24,11 @@ _HEAD_OPTIONS = ("pair", "mass", "scheme")
 
 @dataclass(frozen=True)
 class Run:
-    """One run of the study: ``launch(problem, params, **options)``.
+    """One run of the study: ``simulate(problem, params, **grouped(options))``.
 
-    ``params`` (the problem's declared parameters) and ``options`` (run options of
-    :func:`sdm_dolfinx.run.launch`) are what define the run's results and files; a folder
-    holding a run with the same values is up to date.
+    ``params`` (the problem's declared parameters) and ``options`` (run options, flat as
+    ``run.json``'s ``run_options`` and the TOML keys: :mod:`sdm_dolfinx.run.options`) are what
+    define the run's results and files; a folder holding a run with the same values is up to date.
     """
     name: str
     problem: str

@@ -1,6 +1,6 @@
 """Computing the study: run what is missing or out of date, keep what is there.
 
-Every run goes through :func:`sdm_dolfinx.run.launch` into its own folder of ``runs_dir``.
+Every run goes through :func:`sdm_dolfinx.run.simulate` into its own folder of ``runs_dir``.
 A folder holding a finished run with the same problem, parameters and options (its
 ``run.json``) is reused; so is a deterministic failure (the energy blowing up: a result of
 the study); a step-solver failure is retried with a factorisation per Newton iteration; an
@@ -12,7 +12,7 @@ from pathlib import Path
 from mpi4py import MPI
 
 from sdm_dolfinx.errors import StepError
-from sdm_dolfinx.run import RunInputError, launch
+from sdm_dolfinx.run import RunInputError, grouped, simulate
 from sdm_dolfinx.io import CheckpointError, RunFolderError, read_info
 
 COMM = MPI.COMM_WORLD
@@ -66,11 +66,11 @@ def start(run, folder, comm=COMM, restart=False, progress=False, checkpoint_ever
     """
     extra = {"checkpoint_every": checkpoint_every} if checkpoint_every else {}
     if restart:
-        return launch(out=folder, restart=True, comm=comm, progress=progress, handle_signals=True, **extra)
+        return simulate(out=folder, restart=True, comm=comm, progress=progress, handle_signals=True, **extra)
     if linear is not None:
         extra["linear"] = linear
-    return launch(run.problem, run.params, out=folder, overwrite=True, comm=comm, progress=progress,
-                  handle_signals=True, **{**run.options, **extra})
+    return simulate(run.problem, run.params, out=folder, overwrite=True, comm=comm, progress=progress,
+                    handle_signals=True, **grouped({**run.options, **extra}))
 
 
 def compute(run, folder, state, comm=COMM, say=print, progress=False, checkpoint_every=None):

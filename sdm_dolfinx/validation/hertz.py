@@ -63,7 +63,7 @@ import numpy as np
 from sdm_dolfinx.mpiutil import atomic_write_text, gather_rows, json_text
 from sdm_dolfinx.study.plotting import COLOURS, pyplot, save
 from sdm_dolfinx.problems import ball
-from sdm_dolfinx.run.simulate import simulate
+from sdm_dolfinx.run import num_steps, simulate
 
 #: (level, dt) of the default study: about 2 minutes on one core
 DEFAULT_RUNS = ((1, 4e-5), (1, 2e-5), (2, 4e-5), (2, 2e-5))
@@ -169,7 +169,7 @@ def run_one(level, dt, pair="P2/P1", linear="auto", comm=MPI.COMM_WORLD, out=Non
     problem = ball.problem(comm, level=level, **problem_args)
     ref = ball.hertz_of(problem)
     prm = problem.parameters
-    T = prm["height"] / prm["v"] + T_FACTOR * ref["t_c"]
+    T = num_steps(prm["height"] / prm["v"] + T_FACTOR * ref["t_c"], dt) * dt     # whole steps
     peak = PressureAtPeak()
     r = simulate(problem, pair=pair, dt=dt, T=T, linear=linear, observe=peak, out=out, write_every=write_every)
     ts = r.timeseries

@@ -10,8 +10,9 @@ import pytest
 from sdm_dolfinx import cli
 
 COMM = MPI.COMM_WORLD
-#: the module (``sdm_dolfinx.run.launch`` is also the name of its function)
-launch = importlib.import_module("sdm_dolfinx.run.launch")
+#: the modules whose functions these tests call or replace
+memory = importlib.import_module("sdm_dolfinx.run.memory")
+planning = importlib.import_module("sdm_dolfinx.run.planning")
 
 
 def _write(path, text):
@@ -126,7 +127,7 @@ def test_too_large_for_this_machine(mpi_tmp_path, capsys, monkeypatch):
     """A run whose estimated memory exceeds what the machine has available is refused with
     both numbers (here the machine is said to have 16 GB: --N 4500 needs ~80 GB with P1+/P0),
     and so is an inf-sup inspection; a run that fits is accepted."""
-    monkeypatch.setattr(launch, "available_memory", lambda comm=COMM: 16e9)
+    monkeypatch.setattr(memory, "available_memory", lambda comm=COMM: 16e9)
     out = mpi_tmp_path / "never"
     assert cli.main(["membrane", "--N", "4500", "--out", str(out)]) == 2
     err = capsys.readouterr().err
@@ -137,10 +138,10 @@ def test_too_large_for_this_machine(mpi_tmp_path, capsys, monkeypatch):
     assert cli.main(["inspect", "--N", "4500"]) == 2
     assert "--N 4500 needs about" in capsys.readouterr().err or COMM.rank != 0
     assert not out.exists()
-    plan = launch.plan("membrane", {"N": 200}, out=None)      # ~0.3 GB
+    plan = planning.plan("membrane", {"N": 200}, out=None)      # ~0.3 GB
     assert plan.spec.name == "membrane"
-    with pytest.raises(launch.RunInputError, match=r"^N = 4500 needs about"):
-        launch.plan("membrane", {"N": 4500})
+    with pytest.raises(planning.RunInputError, match=r"^N = 4500 needs about"):
+        planning.plan("membrane", {"N": 4500})
 
 
 def test_steps_are_a_multiple_of_dt():
@@ -148,10 +149,10 @@ def test_steps_are_a_multiple_of_dt():
     accepted, through the API too; the message names both neighbours."""
     for T, dt in ((0.02, 1e-4), (0.02, 1e-5), (0.8, 0.0003125), (0.8, 0.00015625), (0.4, 2.5e-05), (0.8, 0.01),
                   (0.3, 0.1), (0.7, 0.1), (1.0, 1e-3)):
-        assert launch.plan("membrane", {"N": 4}, T=T, dt=dt).steps == round(T / dt)
-    with pytest.raises(launch.RunInputError, match=r"^T = 0\.01 is not a multiple of dt = 0\.003: 3 steps end at "
+        assert planning.plan("membrane", {"N": 4}, T=T, dt=dt).steps == round(T / dt)
+    with pytest.raises(planning.RunInputError, match=r"^T = 0\.01 is not a multiple of dt = 0\.003: 3 steps end at "
                                                     r"t = 0\.009; give T = 0\.009 or 0\.012$"):
-        launch.plan("membrane", T=0.01, dt=0.003)
+        planning.plan("membrane", T=0.01, dt=0.003)
 
 
 @pytest.mark.parametrize("value", ["-6e-1", "-6E-1", "-.6", "-6.0e-01", "-0.6"])

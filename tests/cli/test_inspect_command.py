@@ -58,7 +58,7 @@ def test_sweep_prints_table_and_writes_png(mpi_tmp_path, capsys):
     (["--N", "100000"], "--N 100000 needs about"),
     (["--N", "2147483648"], "--N 2147483648 needs about"),
     (["--sweep", "4", "2000000"], "--sweep 2000000: --N 2000000 needs about"),
-    (["disc", "--h", "1e-300"], "1e-300"),
+    (["--problem", "disc", "--h", "1e-300"], "1e-300"),
 ])
 def test_bad_input_one_line_exit_2(argv, message, capsys):
     assert cli.main(["inspect", *argv]) == 2
@@ -81,3 +81,15 @@ def test_no_traceback_from_a_real_process():
     assert p.returncode == 2
     assert p.stderr.startswith("python -m sdm_dolfinx inspect: error:") and "Traceback" not in p.stderr
 
+
+
+def test_positional_problem_is_a_deprecated_alias(capsys):
+    """``inspect NAME`` still works, with a one-line note on stderr; ``--problem NAME`` is the spelling."""
+    assert cli.main(["inspect", "--problem", "membrane", "--N", "4", "--pair", "P1+/P0"]) == 0
+    new = capsys.readouterr()
+    assert cli.main(["inspect", "membrane", "--N", "4", "--pair", "P1+/P0"]) == 0
+    old = capsys.readouterr()
+    if COMM.rank == 0:
+        assert new.err == "" and old.out == new.out and "beta" in new.out
+        assert old.err == ("python -m sdm_dolfinx inspect: note: 'inspect membrane' is deprecated: write "
+                           "'inspect --problem membrane'\n")

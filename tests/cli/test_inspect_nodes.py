@@ -14,7 +14,7 @@ COMM = MPI.COMM_WORLD
 
 def test_block_p2_p1_with_nodes_is_measured_and_reported(mpi_tmp_path, capsys):
     out = mpi_tmp_path / "nodes.json"
-    rc = cli.main(["inspect", "block", "--pair", "all", "--constrain", "nodes", "--nx", "6", "--ny", "3",
+    rc = cli.main(["inspect", "--problem", "block", "--pair", "all", "--constrain", "nodes", "--nx", "6", "--ny", "3",
                    "--json", str(out)])
     assert rc == 0
     COMM.Barrier()
@@ -34,9 +34,10 @@ def test_block_p2_p1_with_nodes_is_measured_and_reported(mpi_tmp_path, capsys):
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["block", "--pair", "P1/P1", "--constrain", "nodes"], "--constrain nodes is --constrain vertices for pair P1/P1"),
-    (["block", "--pair", "P2/P1", "--constrain", "nodes", "--coulomb-bound"], "drop --constrain nodes"),
-    (["block", "--constrain", "edges"], "invalid choice: 'edges'"),
+    (["--problem", "block", "--pair", "P1/P1", "--constrain", "nodes"],
+     "--constrain nodes is --constrain vertices for pair P1/P1"),
+    (["--problem", "block", "--pair", "P2/P1", "--constrain", "nodes", "--coulomb-bound"], "drop --constrain nodes"),
+    (["--problem", "block", "--constrain", "edges"], "invalid choice: 'edges'"),
 ])
 def test_bad_input_one_line_exit_2(argv, message, capsys):
     assert cli.main(["inspect", *argv]) == 2

@@ -12,12 +12,12 @@ COMM = MPI.COMM_WORLD
 # (argv, expected fragment of the one-line message)
 BAD = [
     (["rod1d", "--hht-alpha", "-0.2"], "--hht-alpha is a parameter of scheme hht, not of scheme midpoint"),
-    (["rod1d", "--scheme", "hht", "--hht-alpha", "0.5"], "--hht-alpha must be a number in [-1/3, 0]"),
+    (["rod1d", "--scheme", "hht", "--hht-alpha", "0.5"], "--hht-alpha: must be a number in [-1/3, 0]"),
     (["rod1d", "--restitution", "0.5"], "--restitution is a parameter of scheme paoli-schatzman"),
     (["rod1d", "--penalty", "2"], "--penalty is a parameter of contact penalty"),
-    (["rod1d", "--contact", "nitsche", "--nitsche-theta", "2"], "'2' is not -1, 0 or 1"),
+    (["rod1d", "--contact", "nitsche", "--nitsche-theta", "2"], "--nitsche-theta: must be one of 1, 0, -1 (got 2)"),
     (["rod1d", "--nitsche-gamma0", "5"], "--nitsche-gamma0 is a parameter of contact nitsche"),
-    (["rod1d", "--contact", "penalty", "--penalty", "-1"], "--penalty: must be a positive"),
+    (["rod1d", "--contact", "penalty", "--penalty", "-1"], "--penalty: must be a finite number > 0 (got -1.0)"),
     (["rod1d", "--contact", "magic"], "invalid choice: 'magic'"),
     (["rod1d", "--constrain", "edges"], "invalid choice: 'edges'"),
     (["rod1d", "--scheme", "newmark", "--checkpoint-every", "10"], "--checkpoint-every must be left out"),

@@ -20,13 +20,13 @@ def test_configurations_are_valid(folder, name, tmp_path):
     from sdm_dolfinx.cli import run as cli_run
     from sdm_dolfinx.paper.design import WELL_POSED
     from sdm_dolfinx.report.studies import make_study
-    from sdm_dolfinx.run import plan
+    from sdm_dolfinx.run import grouped, plan
     problem = name.split("_")[0]
     path = os.path.join(DATA, folder, name)
     spec, args, _ = cli_run.parse(problem, ["--config", path, "--out", str(tmp_path / "x")])
     from_file = cli_run.make_plan(spec, args, problem, MPI.COMM_SELF)
     # the study's run whose values this file gives, compared as effective values
-    study = [plan(r.problem, r.params, comm=MPI.COMM_SELF, **r.options) for r in make_study().runs()
+    study = [plan(r.problem, r.params, comm=MPI.COMM_SELF, **grouped(r.options)) for r in make_study().runs()
              if r.problem == problem]
     matches = [p for p in study if p.params == from_file.params and p.options == from_file.options]
     assert matches, f"{name} describes no run of the study"

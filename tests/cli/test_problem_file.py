@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from sdm_dolfinx import cli
-from sdm_dolfinx.run import Interrupted, launch
+from sdm_dolfinx.run import Interrupted, simulate
 
 COMM = MPI.COMM_WORLD
 DOC = Path(__file__).resolve().parents[2] / "docs" / "add_a_problem.md"
@@ -55,7 +55,7 @@ def test_problem_file_round_trip(mpi_tmp_path, capsys):
     assert not (mpi_tmp_path / "bad").exists()
     # interrupted through the API after step 20, continued from the command line
     with pytest.raises(Interrupted):
-        launch(f, {"n": 4}, out=cut, dt=4e-5, T=2.4e-3, on_step=lambda n, row: n == 20)
+        simulate(f, {"n": 4}, out=cut, dt=4e-5, T=2.4e-3, on_step=lambda n, row: n == 20)
     assert cli.main(["run", "--restart", str(cut), "--quiet"]) == 0
     b = series(cut)
     assert len(b) == len(a) == 61

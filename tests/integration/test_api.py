@@ -10,7 +10,8 @@ from mpi4py import MPI
 import numpy as np
 import pytest
 
-from sdm_dolfinx import PAIRS, SCHEMES, Pair, membrane, simulate
+from sdm_dolfinx import Pair, membrane, schemes, simulate
+from sdm_dolfinx.method.pairs import PAIRS
 from sdm_dolfinx.schemes import get as get_scheme
 
 COMM = MPI.COMM_WORLD
@@ -50,7 +51,7 @@ def test_readme_api_example():
     own = simulate(membrane.problem(N=4), pair=Pair("P2/P0", ("P", 2), ("P", 0), "untested"), dt=1e-2, T=0.05)
     assert own.info["pair"] == "P2/P0" and own.info["dim_H"] == 2 * 4 * 4
     # every scheme by name; Result helpers
-    for scheme in SCHEMES:
+    for scheme in schemes.names():
         # explicit schemes need an invertible mass and a dt below their CFL bound: the diagonal P1 mass
         explicit = get_scheme(scheme).explicit
         kw = dict(pair="P1/P1", mass="row-sum", dt=1e-3, T=0.005) if explicit else dict(pair="P2/P1", dt=1e-2, T=0.05)

@@ -47,13 +47,14 @@ def snapshot(folder):
 # ------------------------------------------------------------------- item 3: two processes
 def test_a_held_lock_refuses_the_run_and_writes_nothing(mpi_tmp_path):
     """While another process (here: another open file description) holds the folder's lock,
-    a run or a restart into it is refused in one line (FolderInUseError, which the command
-    line maps to exit status 2) and writes nothing; a stale lock file is no lock."""
+    a run or a restart into it is refused in one line (a run: RunInputError when its folder is
+    checked, as for a declared problem; a restart: FolderInUseError when it takes the lock; the
+    command line maps both to exit status 2) and writes nothing; a stale lock file is no lock."""
     out = mpi_tmp_path / "run"
     held = FolderLock(out, COMM)
     try:
-        for restart in (False, True):
-            with pytest.raises(FolderInUseError) as e:
+        for restart, error in ((False, RunInputError), (True, FolderInUseError)):
+            with pytest.raises(error) as e:
                 simulate(membrane.problem(N=6), out=out, restart=restart, **KW)
             assert "in use by another run (pid" in str(e.value) and "\n" not in str(e.value)
         assert sorted(f.name for f in out.iterdir()) == [".lock"]

@@ -170,8 +170,8 @@ def test_up_to_date_runs_are_recognised(mpi_tmp_path):
         assert study_runs.run_state(folder, run, COMM.size + 1) == "stale"      # restarts need the same ranks
 
 
-def test_study_runs_through_launch(mpi_tmp_path):
-    """The study computes a run with sdm_dolfinx.run.launch; a run that cannot continue from its
+def test_study_runs_through_simulate(mpi_tmp_path):
+    """The study computes a run with sdm_dolfinx.run.simulate; a run that cannot continue from its
     (damaged) checkpoint starts again; the result is the same as from scratch."""
     run = study.membrane_run("P1+/P0", 4, 0.01, 0.1)
     folder = mpi_tmp_path / run.name

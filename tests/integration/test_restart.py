@@ -230,7 +230,7 @@ def test_overwrite_discards_the_old_checkpoint(mpi_tmp_path):
     out, other = mpi_tmp_path / "a", mpi_tmp_path / "b"
     simulate(membrane.problem(N=6), out=out, checkpoint_every=5, **kw)      # finished, checkpoint at 30
     with pytest.raises(KeyboardInterrupt):                                  # the replacement dies at step 3
-        simulate(membrane.problem(N=6), out=out, checkpoint_every=5,
+        simulate(membrane.problem(N=6), out=out, overwrite=True, checkpoint_every=5,
                  on_step=lambda n, row: (_ for _ in ()).throw(KeyboardInterrupt()) if n == 3 else None, **kw)
     with pytest.raises(CheckpointError, match="no checkpoint"):
         simulate(membrane.problem(N=6), out=out, restart=True, **kw)

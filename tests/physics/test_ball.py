@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from sdm_dolfinx import simulate
+from sdm_dolfinx.run import num_steps
 from sdm_dolfinx.method.discretisation import Discretisation
 from sdm_dolfinx.run.integrator import Integrator
 from sdm_dolfinx.validation import hertz as hertz_study
@@ -25,7 +26,9 @@ _RUNS = {}
 
 
 def run(pair="P2/P1", dt=4e-5, T=4.5e-3, **problem_args):
-    """A level-1 run, cached: the time series only (no PETSc objects)."""
+    """A level-1 run to the last whole step of dt up to T, cached: the time series only (no PETSc
+    objects)."""
+    T = num_steps(T, dt) * dt
     key = (pair, dt, T, tuple(sorted(problem_args.items())))
     if key not in _RUNS:
         _RUNS[key] = simulate(ball.problem(level=1, **problem_args), pair=pair, dt=dt, T=T).timeseries

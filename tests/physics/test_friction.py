@@ -119,7 +119,8 @@ def test_momentum_and_energy_balance(law):
     while), and E + dissipated is conserved to 1e-12 of E^0 (measured: 5e-14)."""
     f = make(law, mu=0.3 if law == "coulomb" else None, threshold=0.03 if law == "tresca" else None)
     dt, n = 2e-5, 60
-    r = simulate(resting_block(), pair="P2/P1", dt=dt, T=n * dt, friction=law, mu=f.mu, tresca_threshold=f.threshold)
+    r = simulate(resting_block(), pair="P2/P1", dt=dt, T=n * dt, friction=law,
+                 friction_options={"mu": f.mu, "tresca_threshold": f.threshold})
     ts = r.timeseries
     px = ts["momentum_x"]
     assert np.abs(np.diff(px) - dt * ts["tangential_force"][1:]).max() < 1e-10 * np.abs(px).max()
@@ -137,7 +138,7 @@ def test_momentum_and_energy_balance(law):
 def test_zero_friction_coefficient_is_the_frictionless_run():
     dt, n = 2e-5, 40
     a = simulate(resting_block(), pair="P2/P1", dt=dt, T=n * dt)
-    b = simulate(resting_block(), pair="P2/P1", dt=dt, T=n * dt, friction="coulomb", mu=0.0)
+    b = simulate(resting_block(), pair="P2/P1", dt=dt, T=n * dt, friction="coulomb", friction_options={"mu": 0.0})
     p = np.abs(a.timeseries["momentum_x"]).max()            # momentum_y is ~0: the momentum scale
     for c in ("energy", "u_probe", "contact_force", "momentum_x", "momentum_y"):
         scale = p if c.startswith("momentum") else max(np.abs(a.timeseries[c]).max(), 1e-300)
@@ -147,11 +148,13 @@ def test_zero_friction_coefficient_is_the_frictionless_run():
 
 @pytest.mark.parametrize("opts, message", [
     ({"friction": "coulomb"}, "friction coulomb needs mu"),
-    ({"friction": "tresca", "mu": 0.3}, "mu is for friction coulomb"),
-    ({"friction": "coulomb", "mu": -1.0}, "mu must be a number >= 0"),
-    ({"friction": "stiction", "mu": 0.3}, "unknown friction law"),
-    ({"friction": "coulomb", "mu": 0.3, "linear": "amg"}, "not vi_solver ssn with linear amg"),
-    ({"friction": "tresca", "tresca_threshold": 0.1, "vi_solver": "vinewtonrsls"}, "not vi_solver vinewtonrsls"),
+    ({"friction": "tresca", "friction_options": {"mu": 0.3}}, "mu is a parameter of friction coulomb, not of friction "
+                                                              "tresca"),
+    ({"friction": "coulomb", "friction_options": {"mu": -1.0}}, "mu must be a number >= 0"),
+    ({"friction": "stiction", "friction_options": {"mu": 0.3}}, "unknown friction law"),
+    ({"friction": "coulomb", "friction_options": {"mu": 0.3}, "linear": "amg"}, "not vi_solver ssn with linear amg"),
+    ({"friction": "tresca", "friction_options": {"tresca_threshold": 0.1}, "vi_solver": "vinewtonrsls"},
+     "not vi_solver vinewtonrsls"),
 ])
 def test_friction_options_that_do_not_agree_are_refused(opts, message):
     """Also a step solver friction has not: the option would otherwise be ignored."""
@@ -165,7 +168,7 @@ def test_one_and_all_ranks_agree(law):
     """The run on every rank (COMM_WORLD) against the same run on each rank alone (COMM_SELF): the
     time series agree to 1e-9 of each column's scale (2 ranks: the partition changes only the
     rounding; 1 rank: identical)."""
-    kw = {"mu": 0.3} if law == "coulomb" else {"tresca_threshold": 0.03}
+    kw = {"friction_options": {"mu": 0.3} if law == "coulomb" else {"tresca_threshold": 0.03}}
     dt, n = 2e-5, 40
     ref = simulate(resting_block(comm=MPI.COMM_SELF), pair="P2/P1", dt=dt, T=n * dt, friction=law, **kw)
     run = simulate(resting_block(), pair="P2/P1", dt=dt, T=n * dt, friction=law, **kw)
@@ -180,7 +183,7 @@ def test_interrupted_frictional_run_restarts_to_the_same_results(mpi_tmp_path):
     of the first step after the restart may differ (the solver's sets start afresh)."""
     from sdm_dolfinx.run.signals import Interrupted
     dt, n = 2e-5, 60
-    kw = dict(pair="P2/P1", dt=dt, T=n * dt, friction="coulomb", mu=0.3)
+    kw = dict(pair="P2/P1", dt=dt, T=n * dt, friction="coulomb", friction_options={"mu": 0.3})
     ref = simulate(resting_block(), **kw)
     out = mpi_tmp_path / "cut"
     with pytest.raises(Interrupted):
@@ -198,7 +201,8 @@ def test_both_schemes_balance_momentum_in_both_directions(scheme):
     m g) exactly for either scheme (e^T A = 0 for a rigid e), to 1e-10 of |P|; backward Euler
     also only loses energy: E + dissipated never increases in sustained contact (1e-12 E^0)."""
     dt, n = 2e-5, 40
-    r = simulate(resting_block(), pair="P2/P1", scheme=scheme, dt=dt, T=n * dt, friction="coulomb", mu=0.3)
+    r = simulate(resting_block(), pair="P2/P1", scheme=scheme, dt=dt, T=n * dt, friction="coulomb",
+                 friction_options={"mu": 0.3})
     ts = r.timeseries
     m = RHO * 20.0 * 10.0
     scale = np.abs(ts["momentum_x"]).max()
@@ -217,7 +221,8 @@ def test_xdmf_contact_status_and_tangential_stress(mpi_tmp_path):
     contact (Coulomb: no friction off contact)."""
     dt, n = 2e-5, 20
     out = mpi_tmp_path / "xdmf"
-    r = simulate(resting_block(), pair="P2/P1", dt=dt, T=n * dt, friction="coulomb", mu=0.3, out=out, write_every=n)
+    r = simulate(resting_block(), pair="P2/P1", dt=dt, T=n * dt, friction="coulomb", friction_options={"mu": 0.3},
+                 out=out, write_every=n)
     res = None
     if COMM.rank == 0:
         from sdm_dolfinx.io.xdmf_reader import read_xdmf

@@ -113,7 +113,7 @@ def test_coulomb_block_decelerates_at_mu_g_and_stops_at_the_closed_form(values, 
     p = block.problem(v0=v0, **values)
     m = block.total_mass(p)
     a0, t0, d0 = block.stopping(v0, G, m, p.parameters["width"], mu=mu)
-    ts = simulate(p, pair="P2/P1", dt=dt, T=T, friction="coulomb", mu=mu).timeseries
+    ts = simulate(p, pair="P2/P1", dt=dt, T=T, friction="coulomb", friction_options={"mu": mu}).timeseries
     t, v = ts["t"], ts["momentum_x"] / m
     F = ts["contact_force"][1:] / (m * G)
     assert F.min() > 0.9 and F.max() < 1.1, (F.min(), F.max())
@@ -138,7 +138,7 @@ def test_tresca_block_decelerates_at_s_L_over_m(values, dt):
     m, L = block.total_mass(p), p.parameters["width"]
     s = 0.3 * m * G / L
     a0, t0, _ = block.stopping(v0, G, m, L, threshold=s)
-    ts = simulate(p, pair="P2/P1", dt=dt, T=T, friction="tresca", tresca_threshold=s).timeseries
+    ts = simulate(p, pair="P2/P1", dt=dt, T=T, friction="tresca", friction_options={"tresca_threshold": s}).timeseries
     t, v = ts["t"], ts["momentum_x"] / m
     all_slip = np.r_[True, ts["n_slip"][1:] == p.parameters["nx"] + 1]          # every bottom vertex
     sliding = np.cumprod(all_slip).astype(bool)
@@ -222,7 +222,7 @@ def test_resting_disc_one_and_two_ranks_agree():
     """The resting solution (its active set decided on arrays every rank holds) and the run on
     COMM_WORLD against COMM_SELF on rank 0, on the incline with friction: the same time series to
     1e-9 of each column's scale."""
-    kw = dict(pair="P2/P1", dt=1e-4, T=0.003, friction="coulomb", mu=0.5)
+    kw = dict(pair="P2/P1", dt=1e-4, T=0.003, friction="coulomb", friction_options={"mu": 0.5})
     par = simulate(_resting_disc(level=1, gravity_angle=THETA), **kw).timeseries
     ser = (simulate(_resting_disc(comm=MPI.COMM_SELF, level=1, gravity_angle=THETA), **kw).timeseries
            if COMM.rank == 0 else None)
@@ -254,7 +254,7 @@ def test_equilibrium_start_is_refused_off_the_foundation(mpi_tmp_path, capsys):
 def _incline(level, mu, T):
     p = _resting_disc(level=level, gravity_angle=THETA)
     m = disc.total_mass(p)
-    ts = simulate(p, pair="P2/P1", dt=1e-4, T=T, friction="coulomb", mu=mu).timeseries
+    ts = simulate(p, pair="P2/P1", dt=1e-4, T=T, friction="coulomb", friction_options={"mu": mu}).timeseries
     return p, m, ts
 
 
@@ -347,7 +347,7 @@ def test_oblique_impact_without_friction_coefficient_is_the_frictionless_run():
     with μ = 0 is the run without friction to round-off (1e-10 of each column's largest value;
     measured <= 1.3e-12), and its tangential force is 0."""
     a = _oblique()
-    b = _oblique(friction="coulomb", mu=0.0)
+    b = _oblique(friction="coulomb", friction_options={"mu": 0.0})
     assert a["n_active"].max() >= 1
     np.testing.assert_array_equal(a["n_active"], b["n_active"])
     for c in ("energy", "momentum_x", "momentum_y", "contact_force", "u_probe", "lambda_probe"):
@@ -361,7 +361,7 @@ def test_oblique_impact_tangential_impulse_within_the_cone():
     the step's forces is μ: measured 0.3 to 1e-12) and the friction slowed the disc (P_x from
     0.377 to 0.174 t mm/s, dissipated 11.3 mJ)."""
     dt, mu = 1e-4, 0.3
-    ts = _oblique(friction="coulomb", mu=mu)
+    ts = _oblique(friction="coulomb", friction_options={"mu": mu})
     tangential = np.cumsum(dt * np.abs(ts["tangential_force"]))
     normal = np.cumsum(dt * ts["contact_force"])
     assert np.all(tangential <= mu * normal * (1.0 + 1e-9) + 1e-300)

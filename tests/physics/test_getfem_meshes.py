@@ -17,7 +17,7 @@ import pytest
 import ufl
 from dolfinx import fem, mesh as dmesh
 
-from sdm_dolfinx import compat, launch
+from sdm_dolfinx import compat, simulate
 from sdm_dolfinx.problems import disc, disc_mesh
 
 COMM = MPI.COMM_WORLD
@@ -158,8 +158,8 @@ def test_run_agrees_with_the_same_mesh_as_msh(mpi_tmp_path):
     x, cells = _getfem_arrays(_file("disc_P2_h4.mesh"))
     msh_file = _write_msh(mpi_tmp_path / "disc_P2_h4.msh", x + (0.0, HEIGHT), cells)
     opts = dict(pair="P2/P1", dt=8e-4, T=0.016, comm=COMM)
-    ours = launch("disc", {"mesh_file": _file("disc_P2_h4.mesh")}, **opts).timeseries
-    gmsh = launch("disc", {"mesh_file": msh_file}, **opts).timeseries
+    ours = simulate("disc", {"mesh_file": _file("disc_P2_h4.mesh")}, **opts).timeseries
+    gmsh = simulate("disc", {"mesh_file": msh_file}, **opts).timeseries
     assert ours["contact_force"].max() > 0
     np.testing.assert_array_equal(ours["n_active"], gmsh["n_active"])
     for c in ("energy", "kinetic", "u_probe", "lambda_probe", "contact_force", "momentum_y"):

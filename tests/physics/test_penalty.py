@@ -101,7 +101,8 @@ def test_epsilon_is_the_rods_modulus_over_h():
 
 def test_options_refused_in_one_line():
     assert contact.check("penalty", {"penalty": -1.0}) == ["penalty must be a finite number > 0 (got -1.0)"]
-    assert "belongs to contact='nitsche'" in contact.check("penalty", {"nitsche_theta": 1})[0]
+    assert contact.check("penalty", {"nitsche_theta": 1}) == [
+        "contact penalty has no parameter nitsche_theta (it takes penalty)"]
     assert "unknown contact treatment" in contact.check("springs")[0]
     assert contact.check("penalty", {"penalty": None, "nitsche_theta": None}) == []
     assert _penalty.DEFAULT_PENALTY == 1.0

@@ -1,4 +1,4 @@
-"""The 3-D memory estimate (solvers.memory's fit, through run.launch.estimate_memory) against the
+"""The 3-D memory estimate (solvers.memory's fit, through run.memory.estimate_memory) against the
 peak RSS of a real run: the coarse ball, a few steps into contact, in a fresh process."""
 import json
 import os
@@ -10,7 +10,7 @@ from mpi4py import MPI
 import pytest
 
 from sdm_dolfinx.problems import get
-from sdm_dolfinx.run.launch import estimate_memory
+from sdm_dolfinx.run.memory import estimate_memory
 from sdm_dolfinx.solvers.memory import BYTES_PER_PROCESS, run_bytes
 
 #: the fit (levels 2-4, solvers/memory.py) within this factor of a measured run at the run's

@@ -8,16 +8,17 @@ from sdm_dolfinx import schemes
 from sdm_dolfinx.method.pairs import PAIRS
 from sdm_dolfinx.compare import comparison as compare
 from sdm_dolfinx.compare.catalogue import CATALOGUE, METHOD_OPTIONS, METHODS, select
-from sdm_dolfinx.run import RUN_DEFAULTS
-from sdm_dolfinx.run.launch import CONSTRAIN, CONTACTS
+from sdm_dolfinx import contact
+from sdm_dolfinx.method.discretisation import CONSTRAIN
+from sdm_dolfinx.run import options as run_options
 
 
 @pytest.mark.parametrize("method", CATALOGUE, ids=[m.name for m in CATALOGUE])
 def test_every_method_is_a_known_combination_of_run_options(method):
     o = method.run_options()
-    assert set(o) == set(METHOD_OPTIONS) and set(METHOD_OPTIONS) <= set(RUN_DEFAULTS)
+    assert set(o) == set(METHOD_OPTIONS) and set(METHOD_OPTIONS) <= set(run_options.names())
     assert o["pair"] in PAIRS and o["scheme"] in schemes.names(), o
-    assert o["contact"] in CONTACTS and o["constrain"] in CONSTRAIN
+    assert o["contact"] in contact.names() and o["constrain"] in CONSTRAIN
     assert o["mass"] is None or o["mass"] in PAIRS[o["pair"]].allowed_masses()
     assert method.description and "\n" not in method.description and method.follows and method.cls
 

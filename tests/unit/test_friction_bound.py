@@ -58,9 +58,9 @@ def test_one_and_all_ranks_give_the_same_bound():
 @pytest.mark.skipif(COMM.size > 1, reason="the command line prints on rank 0 only: checked on 1 rank")
 def test_command_line(capsys):
     from sdm_dolfinx.cli import main
-    assert main(["inspect", "block", "--pair", "P2/P1", "--coulomb-bound", "--dt", "1e-4"]) == 0
+    assert main(["inspect", "--problem", "block", "--pair", "P2/P1", "--coulomb-bound", "--dt", "1e-4"]) == 0
     out = capsys.readouterr().out
     assert "Coulomb step problem (all 11 constrained vertices in contact and slipping, dt = 0.0001, midpoint)" in out
-    assert main(["inspect", "membrane", "--coulomb-bound"]) == 2
+    assert main(["inspect", "--problem", "membrane", "--coulomb-bound"]) == 2
     err = capsys.readouterr().err
     assert "scalar unknown" in err and err.count("\n") == 1 and "Traceback" not in err

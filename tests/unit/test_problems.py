@@ -126,7 +126,7 @@ def test_param_none_default_is_optional():
 
 
 def test_param_string_for_a_number_is_a_message():
-    # launch(problem, {"N": "4"}) through the Python API reaches Param.check with a str
+    # simulate(problem, {"N": "4"}) through the Python API reaches Param.check with a str
     with pytest.raises(ProblemInputError):
         membrane.SPEC.values({"N": "4"})
     with pytest.raises(ProblemInputError):
@@ -368,10 +368,10 @@ def test_a_misspelt_default_is_refused(clean_registry):
 
 
 def test_default_keys_are_the_run_options():
-    """The keys registration accepts are exactly what run.launch reads from defaults (plus the
+    """The keys registration accepts are exactly the run options a problem may default (plus the
     time unit): the two lists cannot drift apart."""
-    from sdm_dolfinx.run import RUN_DEFAULTS
-    assert set(registry.DEFAULT_KEYS) == set(RUN_DEFAULTS) | {"time_unit"}
+    from sdm_dolfinx.run.options import TABLE
+    assert set(registry.DEFAULT_KEYS) == {p.name for p in TABLE if p.problem_default} | {"time_unit"}
 
 
 def test_unknown_extra_column_is_refused_in_one_line():

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 import ufl
 
-from sdm_dolfinx import cli, compat, launch, post
+from sdm_dolfinx import cli, compat, post, simulate
 from sdm_dolfinx.method import quadrature
 from sdm_dolfinx.method.discretisation import Discretisation
 from sdm_dolfinx.run.integrator import Integrator
@@ -144,7 +144,7 @@ def test_run_json_records_the_degree(problem, params, option, recorded, mpi_tmp_
     """run.json: the option as given (run_options) and the degree used (quadrature_degree)."""
     out = mpi_tmp_path / "run"
     dt = 1e-4 if problem == "disc" else 1e-2
-    launch(problem, params, out=out, dt=dt, T=3 * dt, quadrature_degree=option)
+    simulate(problem, params, out=out, dt=dt, T=3 * dt, quadrature_degree=option)
     info = _run_json(out)
     assert info["run_options"]["quadrature_degree"] == option
     assert info["quadrature_degree"] == recorded
@@ -172,7 +172,7 @@ def test_old_run_is_rebuilt_with_estimated_degrees(mpi_tmp_path):
     recomputed from its fields matches its own to round-off (so the rebuild used the
     estimates), but not when run.json claims the default degree; a restart keeps the estimates."""
     out = mpi_tmp_path / "old"
-    launch("disc", {"level": 1}, out=out, pair="P2/P1", dt=1e-4, T=0.015, write_every=5,
+    simulate("disc", {"level": 1}, out=out, pair="P2/P1", dt=1e-4, T=0.015, write_every=5,
            quadrature_degree=quadrature.ESTIMATED)            # the contact starts near t = 0.01
     _strip_degree(out)
     res = post.recompute_energy(out, COMM, write=False)

@@ -1,0 +1,171 @@
+"""Checking a run before it starts: every input of a declared problem, the run options and the
+output folder, in one :class:`RunInputError` giving every reason, before anything is written.
+
+:func:`plan` checks and returns the :class:`RunPlan` without running it;
+:func:`sdm_dolfinx.run.simulate` checks the same way, then runs. The run's problem, parameters
+and options are recorded in ``run.json``, so a restart, the ``energy`` command and the pictures
+rebuild the same run from the folder alone (:func:`_restart_plan`).
+"""
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+from mpi4py import MPI
+
+from sdm_dolfinx.io.folder import RunFolderError, check_out, read_info
+from sdm_dolfinx.method import quadrature
+from sdm_dolfinx.problems import ProblemInputError, resolve, spec_of_run
+from sdm_dolfinx.run import options as run_options
+from sdm_dolfinx.run.loop import execute
+from sdm_dolfinx.run.memory import check_memory
+from sdm_dolfinx.run.options import RESTART_MAY_CHANGE, RunInputError
+from sdm_dolfinx.run.result import num_steps
+
+
+@dataclass
+class RunPlan:
+    """A checked run: the problem's declaration, its parameter values and the run options (flat,
+    every one: :func:`sdm_dolfinx.run.options.complete`)."""
+    spec: object
+    params: dict
+    options: dict
+    out: object = None
+    restart: bool = False
+    #: what the folder held when checked ({"run_id": ...}), checked again under the run's lock
+    folder_seen: object = None
+
+    @property
+    def steps(self):
+        return num_steps(self.options["T"], self.options["dt"])
+
+    def run(self, comm=MPI.COMM_WORLD, progress=False, handle_signals=False, on_step=None, petsc_options=None,
+            extra_info=None, observe=None, constraint_tol=1e-8):
+        """Build the problem and run it (the keywords are :func:`sdm_dolfinx.run.simulate`'s)."""
+        problem = self.spec.problem(comm, **self.params)
+        return execute(problem, self.options, out=self.out, restart=self.restart, progress=progress,
+                       handle_signals=handle_signals, on_step=on_step, petsc_options=petsc_options,
+                       extra_info=extra_info, observe=observe, constraint_tol=constraint_tol,
+                       folder_seen=self.folder_seen)
+
+
+def plan(problem=None, params=None, *, out=None, overwrite=False, restart=False, comm=MPI.COMM_WORLD, cli=False,
+         **options):
+    """Check a run's inputs and the output folder; returns a :class:`RunPlan` (nothing written).
+
+    Args:
+        problem: a registered name, a :class:`~sdm_dolfinx.problems.ProblemSpec` or the path
+            of a problem file (not needed with ``restart``).
+        params: the problem's parameter values (its declared names; the rest at defaults).
+        out, overwrite, restart: as :func:`sdm_dolfinx.run.simulate`'s.
+        cli: name options and parameters ``--option`` in messages (the command line's spelling).
+        options: the run options, as :func:`sdm_dolfinx.run.simulate` takes them.
+
+    Raises:
+        RunInputError: any refused input, with every reason.
+    """
+    given = run_options.collect(options, where="plan")
+    return check_run(problem, params, given, out=out, overwrite=overwrite, restart=restart, comm=comm, cli=cli)
+
+
+def check_run(problem, params, given, *, out=None, overwrite=False, restart=False, comm=MPI.COMM_WORLD, cli=False):
+    """The :class:`RunPlan` of a declared ``problem`` with the flat run options ``given``
+    (:func:`sdm_dolfinx.run.options.collect`); RunInputError with every reason otherwise."""
+    if restart and overwrite:
+        raise RunInputError(f"a restart continues the run in {'--restart' if cli else 'out'}; remove "
+                            f"{'--overwrite' if cli else 'overwrite'}")
+    if problem is None and not restart:
+        raise RunInputError("no problem: give a registered name, a problem file, a ProblemSpec or a Problem (or "
+                            "restart=True with the run's out)")
+    try:
+        if restart:
+            return _restart_plan(out, given, comm, problem, params)
+        spec = resolve(problem)
+        values = spec.values(params, cli=cli)
+    except (ProblemInputError, RunFolderError) as e:
+        raise RunInputError(str(e)) from None
+    opts = run_options.complete(given, spec.defaults)
+    run_options.check(opts, cli)
+    check_memory(spec, values, [opts["pair"]], comm, cli, options=opts, steps=num_steps(opts["T"], opts["dt"]))
+    return RunPlan(spec, values, opts, out, folder_seen=check_folder(out, overwrite, comm, cli))
+
+
+def check_folder(out, overwrite, comm, cli=False):
+    """``{"run_id": ...}`` of the run ``out`` holds (None: none), to be checked again under the
+    run's lock; None without ``out``. RunInputError for a folder name the file system cannot take,
+    or a folder holding a run (or a damaged or foreign ``run.json``) without ``overwrite``."""
+    if out is None:
+        return None
+    check_out_name(out, cli)
+    try:
+        return {"run_id": check_out(Path(out), overwrite, comm)}
+    except RunFolderError as e:
+        raise RunInputError(str(e)) from None
+
+
+def check_out_name(out, cli=False):
+    """RunInputError for an output folder the file system cannot take: an empty name (which
+    would be the current folder) or a name component longer than the file system allows
+    (checked before any folder is created, so nothing is left behind)."""
+    label = "--out" if cli else "out"
+    if str(out).strip() == "":
+        raise RunInputError(f"{label} is empty: name a folder (. for the current one)")
+    path = Path(out)
+    d = path if path.is_absolute() else Path.cwd()
+    try:
+        name_max = os.pathconf(_existing_parent(d), "PC_NAME_MAX")
+    except (OSError, ValueError):
+        name_max = 255
+    for part in path.parts:
+        if len(os.fsencode(part)) > name_max:
+            short = part if len(part) <= 40 else part[:20] + "..." + part[-10:]
+            raise RunInputError(f"{label} {short}: a folder name of {len(os.fsencode(part))} characters; the file "
+                                f"system allows {name_max}")
+    if len(os.fsencode(str(path.absolute()))) > 4000:
+        raise RunInputError(f"{label}: the path is {len(os.fsencode(str(path.absolute())))} characters long; "
+                            f"at most 4000")
+
+
+def _existing_parent(path):
+    while not path.exists():
+        path = path.parent
+    return path
+
+
+def _restart_plan(out, given, comm, problem=None, params=None):
+    """The plan of the run in ``out`` to be continued (the options ``given`` must be the run's,
+    but those of :data:`~sdm_dolfinx.run.options.RESTART_MAY_CHANGE`; ``problem``, if given, the
+    run's problem; no ``params``: the run's own)."""
+    if out is None:
+        raise RunFolderError("a restart needs the run's folder (out)")
+    if params:
+        raise RunFolderError(f"a restart continues the run with its own parameters; remove params "
+                             f"({', '.join(params)})")
+    info = read_info(out, comm)
+    if info.get("status") == "finished":
+        raise RunFolderError(f"{out}: that run is already finished")
+    if "run_options" not in info or "args" not in info.get("problem", {}):
+        raise RunFolderError(f"{out}/run.json does not say how the run was started (written by an older version "
+                             f"or by a problem built by hand): it cannot be continued")
+    saved = dict(info["run_options"])
+    known = run_options.names()
+    foreign = sorted(k for k, v in saved.items() if k not in known and v is not None)
+    if foreign:
+        raise RunFolderError(f"{out}/run.json has run option(s) {', '.join(foreign)} that no registered scheme, "
+                             f"contact treatment or friction law declares: register it before the restart")
+    saved = run_options.complete({k: v for k, v in saved.items() if k in known})
+    # a run.json from before the option: its forms had UFL's estimated degrees
+    saved["quadrature_degree"] = info["run_options"].get("quadrature_degree", quadrature.ESTIMATED)
+    changed = [f"{k} = {v!r} (the run has {saved.get(k)!r})" for k, v in given.items()
+               if k not in RESTART_MAY_CHANGE and v != saved.get(k)]
+    if changed:
+        raise RunFolderError(f"a restart continues the run as it was started; it cannot change "
+                             f"{', '.join(changed)} (only {', '.join(RESTART_MAY_CHANGE)} may change)")
+    saved.update({k: v for k, v in given.items() if k in RESTART_MAY_CHANGE and v is not None})
+    saved["quadrature_degree"] = quadrature.of_run(info)      # the degree it used (the automatic choice may change)
+    try:
+        spec = spec_of_run(info["problem"])
+        if problem is not None and resolve(problem).name != spec.name:
+            raise RunFolderError(f"{out} holds a {spec.name!r} run, not {resolve(problem).name!r}")
+    except ProblemInputError as e:
+        raise RunFolderError(f"{out}: {e}") from None
+    return RunPlan(spec, spec.values(info["problem"]["args"]), saved, out, restart=True)
