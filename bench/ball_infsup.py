@@ -1,4 +1,4 @@
-"""The inf-sup condition (7) of P1+ pairs on tetrahedra, measured on the ball (issue 19).
+"""The inf-sup condition (7) of P1+ pairs on tetrahedra, measured on the ball.
 
 A triangle's P1+ is P1 + the cubic bubble; basix refuses a cubic bubble on a tetrahedron
 ("Bubble element on a tetrahedron must have degree at least 4"): the tetrahedron's bubble is

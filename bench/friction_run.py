@@ -1,4 +1,4 @@
-"""Benchmark of the disc with Coulomb friction against the same run without friction (issue 17).
+"""Benchmark of the disc with Coulomb friction against the same run without friction.
 
 The disc of the paper (P2/P1, C lumped, midpoint) at levels 1-5 with the Table 2 time step of
 each level, dt = 8e-4 / 2^(L-1) s, to T = 0.02 s (25 ... 400 steps), thrown obliquely

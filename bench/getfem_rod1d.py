@@ -1,6 +1,6 @@
 """GetFEM's demo_dynamic_contact_1D.py and sdm_dolfinx on the same rod with the same parameters.
 
-The check the method comparison (issue 18) asks for: on the 1-D rod (``rod1d``: GetFEM's demo
+The check the method comparison asks for: on the 1-D rod (``rod1d``: GetFEM's demo
 and Dabaghi-Petrov-Pousin-Renard), the implicit Newmark scheme (beta = 1/4, gamma = 1/2, the
 constraint on U^{n+1}: the demo's ``version = 0``) with the standard P1 mass and with the
 redistributed mass, run by GetFEM's own script (Debian's ``python3-getfem``, run by the

@@ -58,7 +58,7 @@ SUITES = {
                     "sizes": [5], "max_size": {}},
     "disc-level6": {"problem": "disc", "pair": "P2/P1", "dt": 2.5e-5, "T": 0.02, "sizes": [6],
                     "max_size": {}},
-    # the 3-D ball (issue 19): 25 steps of flight from 0.1 mm, then 50 of contact up to about the
+    # the 3-D ball: 25 steps of flight from 0.1 mm, then 50 of contact up to about the
     # maximal compression (Hertz: t_c = 3.9 ms, so the contact steps are the loaded half)
     "ball": {"problem": "ball", "pair": "P2/P1", "dt": 4e-5, "T": 3e-3, "height": 0.1,
              "sizes": [1, 2, 3, 4, 5],

@@ -1,4 +1,4 @@
-"""The catalogue of the method comparison (issue 18): every method as a named combination of run options.
+"""The catalogue of the method comparison: every method as a named combination of run options.
 
 A method is four independent choices (docs: the issue's shared design): the pair and its mass
 (``pair``, ``mass``), where the constraint acts (``constrain``), the time scheme (``scheme``,
@@ -69,7 +69,7 @@ CATALOGUE = [
            "singular dynamic method, P1+/P0 (Lemma 2: well-posed), midpoint", _SDM, "modified mass"),
     Method("sdm-nodes", {"pair": "P2/P1", "scheme": "midpoint", "constrain": "nodes"},
            "singular dynamic method, P2/P1, midpoint, contact at every boundary node (mid-edge nodes too)",
-           _SDM + " (issue 18.6)", "modified mass", needs_2d=True,
+           _SDM, "modified mass", needs_2d=True,
            reason_1d="in 1-D the contact boundary is one vertex: constraining its nodes is sdm-p2p1"),
     Method("redistributed", {"pair": "P1/P1", "mass": "redistributed", "scheme": "newmark"},
            "mass redistribution (no inertia at the contact nodes), P1, Newmark beta = 1/4, exact contact on "

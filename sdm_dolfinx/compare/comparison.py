@@ -1,4 +1,4 @@
-"""The method comparison (issue 18): methods x h x dt on one problem, against its exact solution
+"""The method comparison: methods x h x dt on one problem, against its exact solution
 or, for a problem without one, against the finest well-posed run; CSV/JSON of the metrics, figures
 and a ranking.
 

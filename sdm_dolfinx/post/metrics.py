@@ -1,4 +1,4 @@
-"""The metrics of the method comparison (issue 18), the same for every method x problem x (h, dt).
+"""The metrics of the method comparison, the same for every method x problem x (h, dt).
 
 Doyen, Ern, Piperno (SIAM J. Sci. Comput. 33 (2011) 223-249) compare dynamic-contact schemes on
 1-D benchmarks by their energy, their penetration, the displacement, velocity and contact stress

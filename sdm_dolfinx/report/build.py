@@ -65,7 +65,7 @@ PAPER_SAYS = {
 }
 
 #: the friction section's heading (its entries say what their closed forms say)
-_FRICTION_HEAD = ("<h2>Friction (issue 17; not in the paper)</h2><p>Runs with Coulomb or Tresca friction at the "
+_FRICTION_HEAD = ("<h2>Friction (not in the paper)</h2><p>Runs with Coulomb or Tresca friction at the "
                   "contact vertices (run options <code>--friction</code>, <code>--mu</code>, "
                   "<code>--tresca-threshold</code>), each next to the rigid-body closed form it should follow and a "
                   "sentence computed from our numbers.</p>")

@@ -89,7 +89,7 @@ def _entry(cmp, data, seconds):
                + f" --dt-ratio 0.5 --T {cmp.T:g}")
     text, verdict = ours(data)
     return Entry(f"compare-{cmp.problem}", text, verdict, says=SAYS, png=f"{folder}/compare_convergence.png",
-                 head=("<h2>Which method? (issue 18; not in the paper)</h2><p>Every method of the comparison's "
+                 head=("<h2>Which method? (not in the paper)</h2><p>Every method of the comparison's "
                        f"catalogue on GetFEM's rod against its closed form, the same grid for all; command "
                        f"<code>{html.escape(command)}</code>; {seconds:.0f} s in this invocation.</p>"),
                  html=table + images,

@@ -1,4 +1,4 @@
-"""The report's section "3-D: the ball against Hertz" (issue 19; not in the paper): the ball study of
+"""The report's section "3-D: the ball against Hertz" (not in the paper): the ball study of
 :mod:`sdm_dolfinx.validation.hertz` at the report's levels and time steps, resumable, with its table, the
 force histories, the pressure profile and the picture of the deformed ball.
 
@@ -186,7 +186,7 @@ def table_entry(rows, computed, seconds):
     """The section's first entry: the table, F(t) against Hertz's, the pressure profile, the discussion."""
     runs = " ".join(f"{r['level']}:{r['dt']:g}" for r in rows)
     command = f"python -m sdm_dolfinx.validation.hertz --runs {runs} --out report/hertz"
-    head = ("<h2>3-D: the ball against Hertz (issue 19; not in the paper)</h2><p>The elastic ball "
+    head = ("<h2>3-D: the ball against Hertz (not in the paper)</h2><p>The elastic ball "
             "(<code>python -m sdm_dolfinx ball</code>, its defaults) falls onto a rigid plane; each run starts 0.01 mm "
             f"above it and ends {hertz.T_FACTOR:g} Hertz contact times after the touch. t_c is the duration of the "
             "first contact phase (resolved to dt), F_max the largest contact force, δ_max the largest approach of the "

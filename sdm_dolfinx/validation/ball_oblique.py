@@ -1,4 +1,4 @@
-"""The ball's oblique impact with Coulomb friction (issue 19): impulses, rebound and spin against
+"""The ball's oblique impact with Coulomb friction: impulses, rebound and spin against
 the rigid-body estimates.
 
 Each run is the ball (:mod:`sdm_dolfinx.problems.ball`, its defaults: R = 20 mm, E = 10 N/mm^2,

@@ -1,4 +1,4 @@
-"""The report's picture of the ball at maximal compression (issue 19): the stored state of largest
+"""The report's picture of the ball at maximal compression: the stored state of largest
 contact force, cut by the axis plane y = 0 and coloured by the von Mises stress; the whole ball and
 a close-up of the contact zone with Hertz's contact radius a and the depth 0.48 a of his largest
 von Mises stress (0.62 p0 at nu = 0.3). pyvista renders it in a child process

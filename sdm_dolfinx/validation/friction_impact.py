@@ -1,5 +1,5 @@
 """The report's friction section, part 2: the disc's oblique impact with a sticking and a
-sliding friction coefficient (issue 17; not in the paper). Rank 0 only.
+sliding friction coefficient (not in the paper). Rank 0 only.
 
 The contact stresses and the stick/slip status of every contact vertex are read from the
 run's ``solution.xdmf`` (fields ``contact_stress``, ``tangential_stress`` and

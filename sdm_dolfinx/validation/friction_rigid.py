@@ -1,4 +1,4 @@
-"""The report's friction section (issue 17; not in the paper), part 1: the disc rolling and
+"""The report's friction section (not in the paper), part 1: the disc rolling and
 sliding down the incline, and the block sliding to a stop, against their rigid-body closed
 forms (:func:`sdm_dolfinx.problems.disc.incline_motion`, :func:`sdm_dolfinx.problems.block.stopping`).
 The oblique impact is :mod:`.friction_impact`. Each figure returns a report

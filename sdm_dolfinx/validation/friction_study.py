@@ -1,4 +1,4 @@
-"""The friction runs of the report (issue 17; not in the paper): the disc rolling and sliding
+"""The friction runs of the report (not in the paper): the disc rolling and sliding
 down an incline and the elastic block sliding to a stop, against their rigid-body closed
 forms, and the disc's oblique impact with a sticking and a sliding friction coefficient.
 

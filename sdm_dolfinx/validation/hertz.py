@@ -1,4 +1,4 @@
-"""The ball against Hertz (issue 19): t_c, F_max, delta_max and the pressure profile, at levels and dt.
+"""The ball against Hertz: t_c, F_max, delta_max and the pressure profile, at levels and dt.
 
 Each run is the ball problem (:mod:`sdm_dolfinx.problems.ball`, its defaults: R = 20 mm, E = 10
 N/mm^2, nu = 0.3, rho = 1e-9 t/mm^3, v = 100 mm/s) at a mesh level and a time step, run from

@@ -1,4 +1,4 @@
-"""The 3-D ball on three ranks (issue 19: "1/2/3 ranks agree"), started with mpirun from a serial
+"""The 3-D ball on three ranks ("1/2/3 ranks agree"), started with mpirun from a serial
 test: ``tests/physics/test_ball.py::test_one_and_two_ranks_agree`` compares the ball run on
 COMM_WORLD with the same run on one rank (COMM_SELF); here it runs under ``mpirun -n 3``
 (oversubscribed on two cores), so a partition into three parts is compared with one rank, to

@@ -76,7 +76,7 @@ def test_quick_study_end_to_end(tmp_path, capsys):
 
 def _check_friction(figs, page):
     """The quick study's friction runs (level 1) against the rigid-body closed forms."""
-    assert "Friction (issue 17; not in the paper)" in page and "<th>a fitted (mm/s²)</th>" in page
+    assert "Friction (not in the paper)" in page and "<th>a fitted (mm/s²)</th>" in page
     for law, m in figs["friction_block"].items():               # stop at v0 / (mu g) (Tresca: s L = mu m g)
         assert abs(m["stop_rel_error"]) < 0.02 and abs(m["a_rel_error"]) < 1e-3, law
     roll, slide = figs["friction_incline"]["rolling"]["1"], figs["friction_incline"]["sliding"]["1"]

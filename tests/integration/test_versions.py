@@ -1,4 +1,4 @@
-"""The same membrane run on two dolfinx versions gives the same time series (issue 9).
+"""The same membrane run on two dolfinx versions gives the same time series.
 
 ``make test-dolfinx09`` runs the paper's Fig. 2 case (P1+/P0, midpoint, N = 10,
 dt = 1e-3, T = 0.8) inside the dolfinx 0.9 chroot and on the host (dolfinx 0.5.2), on 1

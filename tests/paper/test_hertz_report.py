@@ -1,4 +1,4 @@
-"""The report's section "3-D: the ball against Hertz" (issue 19): its reference values are Hertz's closed
+"""The report's section "3-D: the ball against Hertz": its reference values are Hertz's closed
 forms, its table has the expected columns, a rerun computes nothing, and its verdict follows the issue's
 5 % criterion on the finest level."""
 import gc

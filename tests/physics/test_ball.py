@@ -1,4 +1,4 @@
-"""The elastic ball on a rigid plane (issue 19): Hertz's closed forms, the mesh, free flight, the
+"""The elastic ball on a rigid plane: Hertz's closed forms, the mesh, free flight, the
 impulse-momentum balance, energy through the impact, P2/P2's misbehaviour, 1 and 2 ranks."""
 import math
 

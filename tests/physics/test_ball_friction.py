@@ -1,4 +1,4 @@
-"""Coulomb friction in 3-D (issue 19): the friction cone is a disc at every contact vertex.
+"""Coulomb friction in 3-D: the friction cone is a disc at every contact vertex.
 
 * an elastic box resting on the plane z = 0 under a tangential body force below mu m g along a
   diagonal stays: no bottom vertex slips, and E is conserved to round-off;

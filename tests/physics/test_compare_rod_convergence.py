@@ -1,4 +1,4 @@
-"""Every method of the comparison converges to the rod's exact solution (issue 18, "done when").
+"""Every method of the comparison converges to the rod's exact solution.
 
 The 1-D rod (``rod1d``: GetFEM's demo, Dabaghi-Petrov-Pousin-Renard) has a closed form
 (``sdm_dolfinx.problems.rod1d``); along h = 1/20 .. 1/160 with dt = h/2 (T = 3: one period,

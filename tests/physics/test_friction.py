@@ -1,4 +1,4 @@
-"""Friction in the singular dynamic method (issue 17): identities that hold at every step, on a
+"""Friction in the singular dynamic method: identities that hold at every step, on a
 plane-strain block sliding on the foundation y = 0 (1 and 2 ranks).
 
 * the discrete Coulomb cone |lam_T,i| <= mu lam_N,i (Tresca: <= s m_i) at every vertex, stick

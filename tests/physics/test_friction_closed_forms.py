@@ -1,4 +1,4 @@
-"""Friction against its closed forms (issue 17): the sliding block, the disc on an incline, the
+"""Friction against its closed forms: the sliding block, the disc on an incline, the
 disc's oblique impact, and where the energy of a vibrating Coulomb block comes from.
 
 * the block (ν = 0) with Coulomb μ = 0.3 decelerates at μ g, stops at v0/(μ g) after

@@ -1,4 +1,4 @@
-"""The problems with closed forms for friction (issue 17), checked without friction.
+"""The problems with closed forms for friction, checked without friction.
 
 * the block resting on the foundation from its static equilibrium: frictionless, it slides at
   v0 for ever and the foundation carries m g at every step, for every displacement element

@@ -35,7 +35,7 @@ def test_solver_failure_names_step_and_time(mpi_tmp_path):
 
 
 def test_vinewtonrsls_cycles_on_p2p1_where_the_semismooth_newton_converges():
-    """The case that motivated the default solver (issue 2, STYLE.md): P2/P1, N = 10,
+    """The case that motivated the default solver (STYLE.md): P2/P1, N = 10,
     dt = 1e-3, at the first impact (t ~ 0.25, a whole square of vertices touches at once)
     SNES vinewtonrsls cycles between two active sets until its iteration limit; the
     semi-smooth Newton solves every step of the same run in at most 3 iterations."""

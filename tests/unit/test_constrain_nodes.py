@@ -1,5 +1,5 @@
 """``Discretisation(..., constrain="nodes")``: the constraint at every dof of W^h on the constrained
-boundary (issue 18, item 6), against closed forms:
+boundary, against closed forms:
 
 * the block's bottom y = 0 with nx squares of width h carries 2 nx + 1 P2 nodes at x = k h / 2,
   every one constrained (bound -y = 0), the nx + 1 vertices among them;
