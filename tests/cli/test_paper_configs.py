@@ -13,10 +13,13 @@ FOLDERS = ("paper", "validation")
 
 @pytest.mark.parametrize("folder,name", [(f, p) for f in FOLDERS for p in sorted(os.listdir(os.path.join(DATA, f)))
                                          if p.endswith(".toml")])
-def test_configurations_are_valid(folder, name, tmp_path):
+def test_configurations_are_valid(folder, name, tmp_path, monkeypatch):
     """Every configuration in data/paper and data/validation parses, passes the checks, and gives
     exactly the problem parameters and run options of the run that the figures study (the report)
-    computes for it (nothing is run here)."""
+    computes for it (nothing is run here). The memory check is the machine's, not the file's: it
+    is off here (level 6 needs ~4 GB, which a busy machine may not have free at that moment)."""
+    from sdm_dolfinx.run import memory
+    monkeypatch.setattr(memory, "available_memory", lambda comm=None: None)
     from sdm_dolfinx.cli import run as cli_run
     from sdm_dolfinx.paper.design import WELL_POSED
     from sdm_dolfinx.report.studies import make_study
