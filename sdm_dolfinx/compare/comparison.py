@@ -210,10 +210,12 @@ def run_comparison(cmp, comm=COMM, say=None):
 
 
 def _progress(rec):
+    again = (f" (ran again: the stored run's {', '.join(rec['ran_again_because'])} differed)"
+             if rec.get("ran_again_because") else "")
     if rec.get("status") != "finished":
-        return f"{rec.get('status')}: {rec.get('reason', '')}"
+        return f"{rec.get('status')}: {rec.get('reason', '')}{again}"
     return (f"energy error {rec['energy_error_max']:.2e}, u Linf(L2) {rec.get('u_LinfL2', math.nan):.2e}, "
-            f"stress L2(t) {rec['stress_contact_L2t']:.2e}, penetration {rec['penetration_max']:.1e}")
+            f"stress L2(t) {rec['stress_contact_L2t']:.2e}, penetration {rec['penetration_max']:.1e}{again}")
 
 
 # ----------------------------------------------------------------------------- outputs

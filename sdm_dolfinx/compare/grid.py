@@ -6,6 +6,7 @@ A run's folder holds what :func:`~sdm_dolfinx.run.simulate` writes (``run.json``
 folder with ``metrics.json`` is done (finished, failed or refused) and a rerun skips it; a run that
 raised an unexpected exception (status ``error``: a bug, not a property of the method) is run again.
 """
+import importlib.metadata
 import json
 import math
 import shutil
@@ -85,7 +86,45 @@ def _write_metrics(job, record, comm):
 def _base_record(job, problem_name):
     return {"method": job.method.name, "problem": problem_name, "h": job.h, "dt": job.dt, "T": job.T,
             "params": job.params, "options": {k: v for k, v in job.method.options.items()},
-            "class": job.method.cls}
+            "class": job.method.cls, "version": package_version()}
+
+
+#: what defines a run of the grid: a stored run differing in any of these is run again
+RESUME_KEY = ("method", "problem", "h", "dt", "T", "params", "options", "class", "against", "version")
+
+
+def package_version():
+    """sdm_dolfinx's version as installed (a stored run of another version is run again)."""
+    try:
+        return importlib.metadata.version("sdm_dolfinx")
+    except importlib.metadata.PackageNotFoundError:        # run from a source tree
+        return "unknown"
+
+
+def stale_because(done, record, folder):
+    """What makes the stored run in ``folder`` (its metrics.json ``done``) another run than ``record``
+    asks for: the names of :data:`RESUME_KEY` that differ, and the run.json entries (T, the problem's
+    parameters, the run options) that differ; empty when it is the same run."""
+    want = json.loads(json_text(record))            # as stored: tuples become lists
+    why = [k for k in RESUME_KEY if done.get(k) != want.get(k)]
+    info = _read_json(Path(folder) / "run.json")
+    if info is not None and done.get("status") == "finished":
+        if info.get("T") is not None and not math.isclose(info["T"], record["T"], rel_tol=1e-12):
+            why.append("T in run.json")
+        args = info.get("problem", {}).get("args")
+        if args is not None and any(args.get(k) != v for k, v in want["params"].items()):
+            why.append("parameters in run.json")
+        stored = info.get("run_options", {})
+        if any(stored.get(k) != v for k, v in want["options"].items()):
+            why.append("options in run.json")
+    return list(dict.fromkeys(why))
+
+
+def _read_json(path):
+    try:
+        return json.loads(Path(path).read_text())
+    except (OSError, ValueError):
+        return None
 
 
 def _one_line(e):
@@ -105,13 +144,20 @@ def run_job(job, problem_name, problem, truth_of, comm=COMM, exact=None, against
         exact: the ExactSolution measured during the run (None: the gap only).
         against: what the metrics compare with (recorded; a finished run measured against something
             else, e.g. another reference run, is run again).
+    A folder whose metrics.json describes another run (:func:`stale_because`: another T, dt, h,
+    parameter, method option, reference or package version) is run again, never reused.
+
     Raises:
         Interrupted: a signal stopped the run (the folder has no metrics: a rerun starts it again).
     """
-    done = comm.bcast(read_metrics(job.folder) if comm.rank == 0 else None, root=0)
-    if done is not None and done.get("status") != "error" and done.get("against", against) == against:
-        return {**done, "cached": True}
     record = {**_base_record(job, problem_name), "against": against}
+    done = comm.bcast(read_metrics(job.folder) if comm.rank == 0 else None, root=0)
+    stale = comm.bcast(stale_because(done, record, job.folder) if comm.rank == 0 and done is not None else [],
+                       root=0)
+    if done is not None and done.get("status") != "error" and not stale:
+        return {**done, "cached": True}
+    if stale and done.get("status") != "error":
+        record["ran_again_because"] = stale          # said in the progress line
     reason = job.method.refusal(problem.mesh.geometry.dim)
     if reason is None:
         reason = _check_options(job, problem_name, comm)

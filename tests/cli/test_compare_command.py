@@ -72,3 +72,36 @@ def test_compare_is_resumable_and_reports_refusals(mpi_tmp_path, capsys):
             assert (out / name).exists(), name
         assert (out / "compare.csv").read_text() == table and table.count("\n") == 3     # header + two runs
         assert "refused: in 1-D" in (out / "ranking.md").read_text()
+
+
+def _run_T(out):
+    """T of every run.json under ``out`` (rank 0)."""
+    return sorted({json.loads(p.read_text())["T"] for p in out.rglob("run.json")})
+
+
+@pytest.mark.parametrize("first, second, changed", [
+    (["--problem", "rod1d", "--T", "0.5"], ["--problem", "rod1d", "--T", "1.5"], "T"),
+    (["--problem", "bar", "--T", "1.0", "--param", "v=2"], ["--problem", "bar", "--T", "1.0", "--param", "v=1"],
+     "params"),
+])
+def test_compare_never_reuses_a_run_of_other_settings(first, second, changed, mpi_tmp_path, capsys):
+    """The same --out with another T (or another problem parameter) runs every method again: compare.json
+    and the runs' run.json agree on what was run (a stored run is reused only when everything that defines
+    it matches: problem, parameters, h, dt, T, method options, reference, package version)."""
+    out = mpi_tmp_path / "cmp"
+    grid = ["--methods", "sdm-p2p1,penalty-midpoint", "--h", "0.1", "--dt", "0.01", "--out", str(out)]
+    assert cli.main(["compare", *first, *grid]) == 0
+    capsys.readouterr()
+    assert cli.main(["compare", *second, *grid]) == 0
+    said = capsys.readouterr().out
+    if COMM.rank == 0:
+        assert "done before" not in said and said.count("ran again") == 2 and changed in said
+        data = json.loads((out / "compare.json").read_text())
+        T = float(second[second.index("--T") + 1])
+        assert _run_T(out) == [T] and all(r["T"] == T for r in data["records"])
+        if changed == "params":
+            args = {json.loads(p.read_text())["problem"]["args"]["v"] for p in out.rglob("run.json")}
+            assert args == {1.0} and all(r["params"]["v"] == 1.0 for r in data["records"])
+    assert cli.main(["compare", *second, *grid]) == 0                    # now the same runs: reused
+    if COMM.rank == 0:
+        assert "2 of 2 runs done before" in capsys.readouterr().out
