@@ -4,6 +4,7 @@ Only this module may look at ``dolfinx.__version__``; the rest of the package ca
 these helpers, so a port to a new dolfinx touches this file alone.
 """
 import ctypes
+from pathlib import Path
 
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -287,11 +288,26 @@ def xdmf_file(comm, path, mode="w"):
     return io.XDMFFile(comm, str(path), mode)
 
 
+def package_version():
+    """sdm_dolfinx's version as installed ("unknown" when run from a source tree without metadata)."""
+    import importlib.metadata
+    try:
+        return importlib.metadata.version("sdm_dolfinx")
+    except importlib.metadata.PackageNotFoundError:
+        return "unknown"
+
+
+def file_sha256(path):
+    """The SHA-256 of a file's bytes (a problem file's identity in run.json and checkpoints)."""
+    import hashlib
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
 def versions():
     """Library versions for run.json."""
     import basix
     import petsc4py
-    return {"dolfinx": dolfinx.__version__, "basix": basix.__version__, "ufl": ufl.__version__,
+    return {"sdm_dolfinx": package_version(), "dolfinx": dolfinx.__version__, "basix": basix.__version__, "ufl": ufl.__version__,
             "petsc4py": petsc4py.__version__, "petsc": ".".join(map(str, PETSc.Sys.getVersion())),
             "mpi4py": __import__("mpi4py").__version__, "numpy": np.__version__,
             "mpi": MPI.Get_library_version().splitlines()[0].rstrip("\x00").strip()}

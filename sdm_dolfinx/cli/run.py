@@ -56,6 +56,9 @@ def add_run_options(p, defaults):
         g.add_argument("--restart", type=folder_path, default=None, metavar="DIR",
                        help="continue the run in DIR from its checkpoint, with the problem, parameters and options "
                             "of DIR/run.json (same number of ranks; only --checkpoint-every and --quiet may be given)")
+        g.add_argument("--allow-changed-source", action="store_true",
+                       help="with --restart: continue although the problem file or sdm_dolfinx changed since the run "
+                            "started (refused otherwise; run.json records it)")
     declared.add_run_options(p, defaults, before={OUTPUT: output, RESTART: config},
                              after={OUTPUT: output_after, RESTART: restart})
     p.epilog = PETSC_EPILOG
@@ -148,6 +151,8 @@ def make_plan(spec, args, command, comm):
     """The checked :class:`~sdm_dolfinx.run.RunPlan` (UsageError with every reason otherwise)."""
     params = param_values(args, spec)
     opts = grouped(run_option_values(args))
+    if args.allow_changed_source and args.restart is None:
+        raise UsageError("--allow-changed-source is for --restart DIR only")
     try:
         if args.restart is not None:
             if params:
@@ -155,7 +160,8 @@ def make_plan(spec, args, command, comm):
                                  f"{', '.join('--' + spec.param(k).option for k in params)}")
             if args.out is not None and args.out != args.restart:
                 raise UsageError("--restart continues the run in its own folder; remove --out")
-            return plan(out=args.restart, restart=True, overwrite=args.overwrite, comm=comm, cli=True, **opts)
+            return plan(out=args.restart, restart=True, overwrite=args.overwrite, comm=comm, cli=True,
+                        allow_changed_source=args.allow_changed_source, **opts)
         out = args.out if args.out is not None else Path("output") / spec.name
         return plan(spec, params, out=out, overwrite=args.overwrite, comm=comm, cli=True, **opts)
     except RunInputError as e:

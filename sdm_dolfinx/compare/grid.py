@@ -6,7 +6,6 @@ A run's folder holds what :func:`~sdm_dolfinx.run.simulate` writes (``run.json``
 folder with ``metrics.json`` is done (finished, failed or refused) and a rerun skips it; a run that
 raised an unexpected exception (status ``error``: a bug, not a property of the method) is run again.
 """
-import importlib.metadata
 import json
 import math
 import shutil
@@ -19,6 +18,7 @@ from mpi4py import MPI
 
 import numpy as np
 
+from sdm_dolfinx import compat
 from sdm_dolfinx import io as sdm_io
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.mpiutil import atomic_write_text, json_text
@@ -86,19 +86,11 @@ def _write_metrics(job, record, comm):
 def _base_record(job, problem_name):
     return {"method": job.method.name, "problem": problem_name, "h": job.h, "dt": job.dt, "T": job.T,
             "params": job.params, "options": {k: v for k, v in job.method.options.items()},
-            "class": job.method.cls, "version": package_version()}
+            "class": job.method.cls, "version": compat.package_version()}
 
 
 #: what defines a run of the grid: a stored run differing in any of these is run again
 RESUME_KEY = ("method", "problem", "h", "dt", "T", "params", "options", "class", "against", "version")
-
-
-def package_version():
-    """sdm_dolfinx's version as installed (a stored run of another version is run again)."""
-    try:
-        return importlib.metadata.version("sdm_dolfinx")
-    except importlib.metadata.PackageNotFoundError:        # run from a source tree
-        return "unknown"
 
 
 def stale_because(done, record, folder):

@@ -62,6 +62,7 @@ class Problem:
         args: the declared parameter values it was built from (set by
             :meth:`ProblemSpec.problem`; empty for a Problem built by hand).
         source: the problem file that declared it (None for a built-in problem).
+        source_sha256: the SHA-256 of that file when it was loaded (a restart refuses a changed file).
         time: a scalar ``fem.Constant`` that ``l(w)`` may use as the time t, or None. When
             given, the load is time-dependent: L is reassembled before every step with
             ``time`` set to the time at which the scheme evaluates the load (midpoint:
@@ -102,6 +103,7 @@ class Problem:
     momentum_component: int = 1
     args: dict = field(default_factory=dict)
     source: Optional[str] = None
+    source_sha256: Optional[str] = None
     time: Optional[object] = None
     stress: Optional[Callable] = None
 
@@ -149,6 +151,7 @@ class Problem:
             d["args"] = dict(self.args)
         if self.source:
             d["source"] = self.source
+            d["source_sha256"] = self.source_sha256
         if self.time is not None:
             d["load"] = "time-dependent (reassembled every step at the scheme's load time)"
         return d
@@ -191,6 +194,7 @@ class ProblemSpec:
             and a run that would not fit is refused before it starts
             (:func:`sdm_dolfinx.run.memory.estimate_memory`).
         source: the file that declared it (None for a built-in problem).
+        source_sha256: the SHA-256 of that file when it was loaded.
         exact: ``exact(problem) -> ExactSolution`` for a problem with a closed form (the
             comparison of methods measures errors against it), or None: an object with
             ``displacement(x, t)``, ``velocity(x, t)``, ``strain(x, t)`` (x of shape (3, n)
@@ -206,6 +210,7 @@ class ProblemSpec:
     check: Optional[Callable] = None
     estimate: Optional[Callable] = None
     source: Optional[str] = None
+    source_sha256: Optional[str] = None
     exact: Optional[Callable] = None
 
     def param(self, name):
@@ -259,7 +264,7 @@ class ProblemSpec:
         # as run.json will hold them (lists, strings), so that a checkpoint's identity compares equal
         prob.args = {k: (str(v) if isinstance(v, Path) else list(v) if isinstance(v, tuple) else v)
                      for k, v in values.items()}
-        prob.source = self.source
+        prob.source, prob.source_sha256 = self.source, self.source_sha256
         return prob
 
     def units(self):

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
+from sdm_dolfinx import compat
 from sdm_dolfinx.problems.base import ProblemInputError, ProblemSpec, one_line, user_line
 
 _REGISTRY = {}
@@ -102,7 +103,7 @@ def load_file(path):
     if not isinstance(spec, ProblemSpec):
         raise ProblemInputError(f"problem file {path}: defines no PROBLEM = ProblemSpec(...) "
                                 f"(see docs/add_a_problem.md)")
-    spec.source = source
+    spec.source, spec.source_sha256 = source, compat.file_sha256(path)
     return register(spec)
 
 

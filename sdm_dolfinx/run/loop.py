@@ -38,12 +38,15 @@ class SolverSetupError(SdmError, RuntimeError):
 
 
 def execute(problem, options, *, out=None, restart=False, progress=False, petsc_options=None, extra_info=None,
-            handle_signals=False, on_step=None, observe=None, constraint_tol=1e-8, folder_seen=None):
+            handle_signals=False, on_step=None, observe=None, constraint_tol=1e-8, folder_seen=None,
+            changed_source=None):
     """Run ``problem`` with the checked, complete flat run ``options``
     (:func:`sdm_dolfinx.run.options.complete`) from t = 0 to T: the body of
     :func:`sdm_dolfinx.run.simulate`, whose documentation says what the keywords do;
     ``folder_seen`` is ``{"run_id": ...}`` that :func:`sdm_dolfinx.io.folder.check_out` saw in
-    ``out`` (None: no check), checked again once the folder is locked.
+    ``out`` (None: no check), checked again once the folder is locked; ``changed_source`` (a
+    restart allowed to continue with a changed problem file or package: what changed, in words)
+    relaxes the checkpoint's identity check for those and is recorded in run.json.
 
     Returns:
         :class:`Result`.
@@ -61,7 +64,9 @@ def execute(problem, options, *, out=None, restart=False, progress=False, petsc_
         signum = stop.agreed(loop.comm)
         if signum:
             raise Interrupted("interrupted during the set-up, before anything was written", signum)
-        loop.open(out, restart, o["write_every"], {"run_options": run_options, **(extra_info or {})}, folder_seen)
+        extra = {"run_options": run_options, **(extra_info or {}),
+                 **({"continued_with_changed_source": list(changed_source)} if changed_source else {})}
+        loop.open(out, restart, o["write_every"], extra, folder_seen)
         loop.run(stop, progress, on_step, o["checkpoint_every"], constraint_tol)
         return loop.finish()
     finally:
@@ -116,7 +121,8 @@ class _Loop:
         self.gap_imposed, self.gap_end = np.zeros(self.nsteps), np.zeros(self.nsteps)
         self.lam = np.zeros(len(d.cdofs))
         self.fingerprint = checkpoint.mesh_fingerprint(problem.mesh)
-        self.identity = {"problem": problem.describe(), "pair": d.pair.name, "mass": d.mass, "scheme": scheme,
+        self.identity = {"problem": problem.describe(), "sdm_dolfinx": compat.package_version(),
+                         "pair": d.pair.name, "mass": d.mass, "scheme": scheme,
                          "dt": dt, "vi_solver": vi_solver, "linear": linear, "ranks": self.comm.size,
                          "mesh": self.fingerprint,
                          **({"friction": friction.describe()} if friction is not None and friction.on else {}),
@@ -150,8 +156,9 @@ class _Loop:
                 f"scheme {integ.scheme!r} keeps state between steps that a checkpoint does not hold (U and V "
                 f"only): it cannot restart; rerun from t = 0")
         if restart:
-            self.first, self.run_id, outputs = _restart.resume(out, self.identity, self.fields_of, integ,
-                                                               self.nsteps, self.comm, self.history)
+            self.first, self.run_id, outputs = _restart.resume(
+                out, self.identity, self.fields_of, integ, self.nsteps, self.comm, self.history,
+                allow_changed_source=bool(extra_info.get("continued_with_changed_source")))
             self.info["restarted_from_step"] = self.first
         else:
             self.run_id = self.comm.bcast(uuid.uuid4().hex if self.comm.rank == 0 else None, root=0)

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
+from sdm_dolfinx import compat
 from sdm_dolfinx.io.folder import RunFolderError, check_out, read_info
 from sdm_dolfinx.method import quadrature
 from sdm_dolfinx.problems import ProblemInputError, resolve, spec_of_run
@@ -33,6 +34,8 @@ class RunPlan:
     restart: bool = False
     #: what the folder held when checked ({"run_id": ...}), checked again under the run's lock
     folder_seen: object = None
+    #: a restart allowed to continue with a changed problem file or package: what changed
+    changed_source: object = None
 
     @property
     def steps(self):
@@ -45,18 +48,18 @@ class RunPlan:
         return execute(problem, self.options, out=self.out, restart=self.restart, progress=progress,
                        handle_signals=handle_signals, on_step=on_step, petsc_options=petsc_options,
                        extra_info=extra_info, observe=observe, constraint_tol=constraint_tol,
-                       folder_seen=self.folder_seen)
+                       folder_seen=self.folder_seen, changed_source=self.changed_source)
 
 
-def plan(problem=None, params=None, *, out=None, overwrite=False, restart=False, comm=MPI.COMM_WORLD, cli=False,
-         **options):
+def plan(problem=None, params=None, *, out=None, overwrite=False, restart=False, allow_changed_source=False,
+         comm=MPI.COMM_WORLD, cli=False, **options):
     """Check a run's inputs and the output folder; returns a :class:`RunPlan` (nothing written).
 
     Args:
         problem: a registered name, a :class:`~sdm_dolfinx.problems.ProblemSpec` or the path
             of a problem file (not needed with ``restart``).
         params: the problem's parameter values (its declared names; the rest at defaults).
-        out, overwrite, restart: as :func:`sdm_dolfinx.run.simulate`'s.
+        out, overwrite, restart, allow_changed_source: as :func:`sdm_dolfinx.run.simulate`'s.
         cli: name options and parameters ``--option`` in messages (the command line's spelling).
         options: the run options, as :func:`sdm_dolfinx.run.simulate` takes them.
 
@@ -64,10 +67,12 @@ def plan(problem=None, params=None, *, out=None, overwrite=False, restart=False,
         RunInputError: any refused input, with every reason.
     """
     given = run_options.collect(options, where="plan")
-    return check_run(problem, params, given, out=out, overwrite=overwrite, restart=restart, comm=comm, cli=cli)
+    return check_run(problem, params, given, out=out, overwrite=overwrite, restart=restart, comm=comm, cli=cli,
+                     allow_changed_source=allow_changed_source)
 
 
-def check_run(problem, params, given, *, out=None, overwrite=False, restart=False, comm=MPI.COMM_WORLD, cli=False):
+def check_run(problem, params, given, *, out=None, overwrite=False, restart=False, comm=MPI.COMM_WORLD, cli=False,
+              allow_changed_source=False):
     """The :class:`RunPlan` of a declared ``problem`` with the flat run options ``given``
     (:func:`sdm_dolfinx.run.options.collect`); RunInputError with every reason otherwise."""
     if restart and overwrite:
@@ -78,7 +83,7 @@ def check_run(problem, params, given, *, out=None, overwrite=False, restart=Fals
                             "restart=True with the run's out)")
     try:
         if restart:
-            return _restart_plan(out, given, comm, problem, params)
+            return _restart_plan(out, given, comm, problem, params, allow_changed_source, cli)
         spec = resolve(problem)
         values = spec.values(params, cli=cli)
     except (ProblemInputError, RunFolderError) as e:
@@ -131,7 +136,7 @@ def _existing_parent(path):
     return path
 
 
-def _restart_plan(out, given, comm, problem=None, params=None):
+def _restart_plan(out, given, comm, problem=None, params=None, allow_changed_source=False, cli=False):
     """The plan of the run in ``out`` to be continued (the options ``given`` must be the run's,
     but those of :data:`~sdm_dolfinx.run.options.RESTART_MAY_CHANGE`; ``problem``, if given, the
     run's problem; no ``params``: the run's own)."""
@@ -146,6 +151,12 @@ def _restart_plan(out, given, comm, problem=None, params=None):
     if "run_options" not in info or "args" not in info.get("problem", {}):
         raise RunFolderError(f"{out}/run.json does not say how the run was started (written by an older version "
                              f"or by a problem built by hand): it cannot be continued")
+    sources = source_changes(info)
+    if sources and not allow_changed_source:
+        how = (f"--restart {out} --allow-changed-source" if cli else "allow_changed_source=True")
+        raise RunFolderError(f"{out}: {'; '.join(sources)} since the run started, so its physics may differ: "
+                             f"rerun from t = 0, or restore the file; to continue with the change deliberately "
+                             f"(run.json records it): {how}")
     saved = dict(info["run_options"])
     known = run_options.names()
     foreign = sorted(k for k, v in saved.items() if k not in known and v is not None)
@@ -168,4 +179,24 @@ def _restart_plan(out, given, comm, problem=None, params=None):
             raise RunFolderError(f"{out} holds a {spec.name!r} run, not {resolve(problem).name!r}")
     except ProblemInputError as e:
         raise RunFolderError(f"{out}: {e}") from None
-    return RunPlan(spec, spec.values(info["problem"]["args"]), saved, out, restart=True)
+    return RunPlan(spec, spec.values(info["problem"]["args"]), saved, out, restart=True,
+                   changed_source=sources or None)
+
+
+def source_changes(info):
+    """What changed since the run in ``info`` (its run.json) started, in words: its problem file
+    (SHA-256 of its bytes) or the package's version; empty when neither did."""
+    changed = []
+    problem = info.get("problem", {})
+    source = problem.get("source")
+    if source is not None and Path(source).is_file():
+        recorded, now = problem.get("source_sha256"), compat.file_sha256(source)
+        if recorded != now:
+            changed.append(f"the problem file {source} has changed (SHA-256 {str(recorded)[:12]}... recorded, "
+                           f"{now[:12]}... now)" if recorded else
+                           f"the problem file {source} may have changed (run.json holds no SHA-256 of it)")
+    recorded = info.get("versions", {}).get("sdm_dolfinx")
+    if recorded != compat.package_version():
+        changed.append(f"sdm_dolfinx is version {compat.package_version()}, the run started with "
+                       + (recorded if recorded else "an older one that did not record its version"))
+    return changed

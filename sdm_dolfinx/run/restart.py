@@ -16,20 +16,46 @@ from sdm_dolfinx.io.checkpoint import CheckpointError
 from sdm_dolfinx.io.run_files import agree
 from sdm_dolfinx.run.options import IDENTITY
 
-#: what must be the same for a checkpoint to continue a run: the problem, the run options
-#: declared part of its identity, the number of ranks
-IDENTITY_KEYS = ("problem", *IDENTITY, "ranks")
+#: what must be the same for a checkpoint to continue a run: the problem, the package's version,
+#: the run options declared part of its identity, the number of ranks
+IDENTITY_KEYS = ("problem", "sdm_dolfinx", *IDENTITY, "ranks")
+#: what a restart deliberately allowed to continue with a changed source may find changed
+SOURCE_KEYS = ("sdm_dolfinx", "problem.source_sha256")
 
 
-def check_identity(saved, now):
-    """A checkpoint continues only the run that wrote it."""
+def check_identity(saved, now, allow_changed_source=False):
+    """A checkpoint continues only the run that wrote it: the first entry that differs is named in
+    one line (``problem.parameters.E = 1000.0``, not the whole problem)."""
+    skip = SOURCE_KEYS if allow_changed_source else ()
     for key in IDENTITY_KEYS:
-        if saved.get(key) != now.get(key):
+        diff = first_difference(saved.get(key), now.get(key), key, skip)
+        if diff is not None:
+            where, was, now_is = diff
             raise CheckpointError(
-                f"the checkpoint was written with {key} = {saved.get(key)!r}, this run has {now.get(key)!r}"
+                f"the checkpoint was written with {where} = {_short(was)}, this run has {_short(now_is)}"
                 + (" (restart on the same number of ranks)" if key == "ranks" else ""))
     if not checkpoint.same_fingerprint(saved["mesh"], now["mesh"]):
         raise CheckpointError("the checkpoint was written on a different mesh")
+
+
+def first_difference(a, b, path, skip=()):
+    """(dotted path, a's value, b's value) of the first entry where ``a`` and ``b`` differ (dicts
+    compared key by key, entries in ``skip`` ignored), or None when they agree."""
+    if path in skip:
+        return None
+    if isinstance(a, dict) and isinstance(b, dict):
+        for k in sorted(set(a) | set(b), key=str):
+            diff = first_difference(a.get(k), b.get(k), f"{path}.{k}", skip)
+            if diff is not None:
+                return diff
+        return None
+    return None if a == b else (path, a, b)
+
+
+def _short(v):
+    """A value for a one-line message (at most 60 characters)."""
+    text = repr(v)
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def _check_complete(data, meta, path):
@@ -46,9 +72,10 @@ def _check_complete(data, meta, path):
         raise CheckpointError(f"cannot read {path}: it is not a checkpoint of a run ({', '.join(missing)} missing)")
 
 
-def resume(out, identity, fields, integ, nsteps, comm, history=None):
+def resume(out, identity, fields, integ, nsteps, comm, history=None, allow_changed_source=False):
     """Restore ``fields``, the active set and the solver's history from ``out``'s checkpoint
-    (collective). Checks everything before any file is touched.
+    (collective). Checks everything before any file is touched (``allow_changed_source``: the
+    problem file's hash and the package's version may differ, as the user allowed).
 
     Returns:
         (first step, run id, files) with files the checkpoint's record of the run's files
@@ -62,7 +89,7 @@ def resume(out, identity, fields, integ, nsteps, comm, history=None):
         raise CheckpointError("restart needs the output folder of the run")
     data, meta = checkpoint.load(out, comm)
     _check_complete(data, meta, Path(out) / checkpoint.CHECKPOINT)
-    check_identity(meta["identity"], identity)
+    check_identity(meta["identity"], identity, allow_changed_source)
     if meta["step"] > nsteps:
         raise CheckpointError(f"the checkpoint is at step {meta['step']}, past T = {nsteps * identity['dt']}")
     previous = checkpoint.previous_run_id(out, comm)

@@ -14,7 +14,7 @@ from sdm_dolfinx.run.result import Result
 
 
 def simulate(problem: Any = None, params: Optional[Mapping[str, Any]] = None, *, out=None, overwrite: bool = False,
-             restart: bool = False, comm=None,
+             restart: bool = False, allow_changed_source: bool = False, comm=None,
              pair: Any = None, scheme: Optional[str] = None, dt: Optional[float] = None, T: Optional[float] = None,
              mass: Optional[str] = None, vi_solver: Optional[str] = None, linear: Optional[str] = None,
              quadrature_degree: Union[int, str, None] = None, friction: Optional[str] = None,
@@ -40,6 +40,9 @@ def simulate(problem: Any = None, params: Optional[Mapping[str, Any]] = None, *,
         overwrite: replace the run in ``out``.
         restart: continue the run in ``out`` from its checkpoint (same problem, parameters, options
             and ranks; only ``checkpoint_every`` may differ).
+        allow_changed_source: with ``restart``, continue even though the problem file or the
+            package's version changed since the run started (refused otherwise: the physics may
+            differ); run.json records what changed.
         comm: the ranks of a declared problem (default ``MPI.COMM_WORLD``); a Problem's are its mesh's.
         pair, scheme, dt, T, mass, vi_solver, linear, quadrature_degree, friction, constrain, contact,
             write_every, checkpoint_every: the run options (:data:`sdm_dolfinx.run.options.TABLE`:
@@ -80,10 +83,15 @@ def simulate(problem: Any = None, params: Optional[Mapping[str, Any]] = None, *,
          "contact_options": contact_options, "friction_options": friction_options, **deprecated})
     session = dict(progress=progress, handle_signals=handle_signals, on_step=on_step, observe=observe,
                    petsc_options=petsc_options, extra_info=extra_info, constraint_tol=constraint_tol)
+    if allow_changed_source and not restart:
+        raise RunInputError("allow_changed_source is for a restart only (restart=True)")
     if isinstance(problem, Problem):
+        if allow_changed_source:
+            session["changed_source"] = ["allowed by the caller (allow_changed_source=True)"]
         return _run_built(problem, params, given, out, overwrite, restart, comm, session)
     comm = MPI.COMM_WORLD if comm is None else comm
-    the_plan = check_run(problem, params, given, out=out, overwrite=overwrite, restart=restart, comm=comm)
+    the_plan = check_run(problem, params, given, out=out, overwrite=overwrite, restart=restart, comm=comm,
+                         allow_changed_source=allow_changed_source)
     return the_plan.run(comm, **session)
 
 

@@ -18,6 +18,16 @@ DOC = Path(__file__).resolve().parents[2] / "docs" / "add_a_problem.md"
 SMALL = ["--n", "4", "--dt", "4e-5", "--T", "2.4e-3", "--quiet"]
 
 
+@pytest.fixture(autouse=True)
+def _own_registry():
+    """Each test's my_block.py (another folder each time) registers afresh: the registry is restored after."""
+    from sdm_dolfinx.problems import registry
+    saved = dict(registry._REGISTRY)
+    yield
+    registry._REGISTRY.clear()
+    registry._REGISTRY.update(saved)
+
+
 def block_file(folder):
     """docs/add_a_problem.md's my_block.py, written into ``folder`` (rank 0) and shared."""
     path = folder / "my_block.py"
@@ -97,3 +107,56 @@ def test_problem_file_errors_are_one_line(mpi_tmp_path, capsys):
         if COMM.rank == 0:
             assert message in err and len(err.strip().splitlines()) == 1, err
     assert not (mpi_tmp_path / "never").exists()
+
+
+def _interrupted_run(mpi_tmp_path):
+    """docs/add_a_problem.md's block, started from its file and interrupted after step 12 with a
+    checkpoint (as a Ctrl-C would leave it): (the file, the run's folder)."""
+    f = block_file(mpi_tmp_path)
+    cut = mpi_tmp_path / "cut"
+    with pytest.raises(Interrupted):
+        simulate(str(f), {"n": 4}, out=cut, dt=4e-5, T=2.4e-3, checkpoint_every=5, on_step=lambda n, row: n == 12)
+    return f, cut
+
+
+def test_restart_refuses_a_changed_problem_file(mpi_tmp_path, capsys):
+    """The run's physics is its problem file: after the file's stiffness is multiplied by 4, --restart
+    refuses in one line naming the file and the deliberate way to continue, and writes nothing (it
+    continued with the new physics before: exit 0, the energy jumping by 4.9 with E0 = 3.9)."""
+    f, cut = _interrupted_run(mpi_tmp_path)
+    before = (cut / "run.json").read_text() if COMM.rank == 0 else None
+    if COMM.rank == 0:
+        text = f.read_text()
+        assert text.count('Param("E", 1000.0') == 1
+        f.write_text(text.replace('Param("E", 1000.0', 'Param("E", 4000.0'))
+    COMM.Barrier()
+    capsys.readouterr()
+    assert cli.main(["run", "--restart", str(cut), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    if COMM.rank == 0:
+        assert len(err.strip().splitlines()) == 1, err
+        assert f"the problem file {f.resolve()} has changed" in err and "--allow-changed-source" in err
+        assert (cut / "run.json").read_text() == before            # nothing written
+    with pytest.raises(Exception, match="allow_changed_source=True"):
+        simulate(out=cut, restart=True)
+    # deliberately: it continues, and run.json says with what
+    assert cli.main(["run", "--restart", str(cut), "--quiet", "--allow-changed-source"]) == 0
+    if COMM.rank == 0:
+        info = json.loads((cut / "run.json").read_text())
+        assert info["status"] == "finished" and "has changed" in info["continued_with_changed_source"][0]
+
+
+def test_a_restart_names_the_one_difference_in_one_line(mpi_tmp_path):
+    """A checkpoint of another problem is refused naming the first entry that differs
+    (problem.args.E), not the whole problem (a JSON dump of several kB before); and
+    allow_changed_source belongs to restarts only."""
+    from sdm_dolfinx.problems import load_file
+    f, cut = _interrupted_run(mpi_tmp_path)
+    spec = load_file(f)
+    with pytest.raises(Exception) as e:
+        simulate(spec.problem(COMM, n=4, E=2000.0), out=cut, restart=True, dt=4e-5, T=2.4e-3, checkpoint_every=5)
+    msg = str(e.value)
+    assert type(e.value).__name__ == "CheckpointError" and len(msg.splitlines()) == 1 and len(msg) < 200, msg
+    assert "problem.args.E = 1000.0" in msg and "2000.0" in msg
+    with pytest.raises(Exception, match="for a restart only"):
+        simulate(str(f), {"n": 4}, dt=4e-5, T=2.4e-3, allow_changed_source=True)
