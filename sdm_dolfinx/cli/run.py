@@ -25,6 +25,7 @@ from sdm_dolfinx.run import Interrupted, RunInputError, SolverSetupError, groupe
 from sdm_dolfinx.io import CheckpointError, RunFolderError, read_info
 from sdm_dolfinx.run.options import OUTPUT, RESTART
 from sdm_dolfinx.solvers import VI_OPTIONS
+from sdm_dolfinx.solvers.options import unknown_option
 
 PROG = "python -m sdm_dolfinx"
 
@@ -181,6 +182,9 @@ def petsc_overrides(extra):
         if i + 1 < len(extra) and not extra[i + 1].startswith("-sdm_"):
             value = extra[i + 1]
             i += 1
+        unknown = unknown_option(key)
+        if unknown:
+            raise UsageError(unknown)
         _check_vi_option(key, value)
         pairs.append((key, value))
         i += 1

@@ -95,7 +95,13 @@ class Integrator:
         return bool(self.time_scheme.stateful)
 
     def _refuse_contact(self):
-        """The refusal of a contact treatment with friction or the block variant, or None."""
+        """The refusal of a contact treatment with friction or the block variant, or of friction or a
+        treatment on a problem without constrained vertices (they would do nothing), or None."""
+        d = self.discretisation
+        if d.num_constraints == 0 and (self.friction is not None or self.contact != "exact"):
+            what = f"friction {self.friction.law}" if self.friction is not None else f"contact {self.contact}"
+            return (f"{what} acts at the constrained vertices, and problem {d.problem.name!r} has none (contact "
+                    f"switched off?): remove it")
         if self.contact == "exact":
             return None
         if self.friction is not None:

@@ -302,6 +302,23 @@ def _rules(o, label):
                       f"steps that a checkpoint does not hold (it cannot restart)")
     if o.get("friction") in _friction.LAWS:
         errors += _friction.check_solver(o.get("friction"), o.get("vi_solver"), o.get("linear"))
+    errors += _treatment_solver(o, label)
+    return errors
+
+
+def _treatment_solver(o, label):
+    """A contact treatment other than the exact one brings its own step solver (a Newton method on
+    its equation, one factorisation of the step matrix): a step-solver choice would be ignored."""
+    contact = o.get("contact")
+    if contact in (None, "exact"):
+        return []
+    errors = []
+    if o.get("vi_solver") not in (None, "ssn"):
+        errors.append(f"{label['vi_solver']} {o['vi_solver']} solves the variational inequality of contact exact; "
+                      f"contact {contact} has its own step solver: remove {label['vi_solver']}")
+    if o.get("linear") not in (None, "auto", "schur"):
+        errors.append(f"{label['linear']} {o['linear']}: contact {contact} solves its steps through one factorisation "
+                      f"of the step matrix (schur); remove {label['linear']}")
     return errors
 
 

@@ -11,6 +11,7 @@ from sdm_dolfinx.run.loop import execute
 from sdm_dolfinx.run.options import RunInputError
 from sdm_dolfinx.run.planning import check_folder, check_run
 from sdm_dolfinx.run.result import Result
+from sdm_dolfinx.solvers.options import unknown_option
 
 
 def simulate(problem: Any = None, params: Optional[Mapping[str, Any]] = None, *, out=None, overwrite: bool = False,
@@ -83,6 +84,9 @@ def simulate(problem: Any = None, params: Optional[Mapping[str, Any]] = None, *,
          "contact_options": contact_options, "friction_options": friction_options, **deprecated})
     session = dict(progress=progress, handle_signals=handle_signals, on_step=on_step, observe=observe,
                    petsc_options=petsc_options, extra_info=extra_info, constraint_tol=constraint_tol)
+    unknown = [m for m in map(unknown_option, petsc_options or {}) if m]
+    if unknown:
+        raise RunInputError("; ".join(unknown))
     if allow_changed_source and not restart:
         raise RunInputError("allow_changed_source is for a restart only (restart=True)")
     if isinstance(problem, Problem):

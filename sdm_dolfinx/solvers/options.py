@@ -133,3 +133,24 @@ def snes_reason_name(reason):
     """The name of a SNES converged reason (``DIVERGED_MAX_IT``, ...)."""
     names = {v: k for k, v in vars(PETSc.SNES.ConvergedReason).items() if isinstance(v, int)}
     return names.get(reason, "unknown")
+
+
+#: the families of PETSc options the step solvers read under their prefix (``-sdm_`` or an
+#: instance's ``-sdm_<k>_``): their own ``vi_*`` and ``schur_max_active``, the semi-smooth Newton's
+#: or PETSc's SNES (``snes_``), its linear solves (``ksp_``, ``pc_``, ``mat_``), the factorisation
+#: (``factor_``), the penalty's and the AMG strategies' Krylov solvers (``penalty_``, ``amg_``,
+#: ``gamg_``)
+OPTION_FAMILIES = ("vi_", "snes_", "ksp_", "pc_", "mat_", "factor_", "penalty_", "amg_", "gamg_")
+_OPTION = re.compile(r"^(\d+_)?(" + "|".join(OPTION_FAMILIES) + r")\w+$|^(\d+_)?schur_max_active$")
+
+
+def unknown_option(name):
+    """A one-line refusal of the step solver's PETSc option ``name`` (without ``-sdm_`` or with
+    it) when it belongs to none of :data:`OPTION_FAMILIES` (no solver would read it: PETSc would
+    only list it as unused when the run ends), else None."""
+    key = str(name).lstrip("-")
+    key = key[len("sdm_"):] if key.startswith("sdm_") else key
+    if _OPTION.match(key):
+        return None
+    return (f"PETSc option -sdm_{key}: no step solver reads it; the step solvers' options are -sdm_"
+            f"{', -sdm_'.join(f + '...' for f in OPTION_FAMILIES)} and -sdm_schur_max_active (docs/running.md)")

@@ -98,6 +98,16 @@ BAD = [
     (["membrane"], "checkpoint-every = -2\n", "bad.toml: key 'checkpoint-every'"),
     (["membrane"], "N = 0\n", "bad.toml: key 'N' (--N) must be >= 1 (got 0)"),
     (["disc"], "radius = -1.0\n", "bad.toml: key 'radius' (--radius) must be > 0"),
+    # options that would be accepted, recorded in run.json and do nothing
+    (["ball", "--no-contact", "--friction", "coulomb", "--mu", "0.3", "--T", "4e-5"], None,
+     "friction coulomb acts at the constrained vertices, and problem 'ball' has none"),
+    (["membrane", "--contact", "penalty", "--vi-solver", "vinewtonrsls"], None,
+     "contact penalty has its own step solver: remove --vi-solver"),
+    (["membrane", "--contact", "penalty", "--vi-solver", "vinewtonssls"], None, "remove --vi-solver"),
+    (["disc", "--contact", "nitsche", "--vi-solver", "vinewtonrsls"], None, "remove --vi-solver"),
+    (["membrane", "--contact", "penalty", "--linear", "amg"], None, "--linear amg: contact penalty solves its steps"),
+    (["membrane", "-sdm_bogus_option", "1"], None, "PETSc option -sdm_bogus_option: no step solver reads it"),
+    (["membrane", "-sdm_2_bogus"], None, "PETSc option -sdm_2_bogus: no step solver reads it"),
 ]
 
 
@@ -113,7 +123,7 @@ def test_bad_input_is_refused(argv, toml, message, mpi_tmp_path, capsys, monkeyp
     argv = list(argv)
     if toml is not None:
         argv += ["--config", _write(mpi_tmp_path / "bad.toml", toml)]
-    if argv[0] in ("membrane", "disc") and "--out" not in argv:
+    if argv[0] in ("membrane", "disc", "ball") and "--out" not in argv:
         argv += ["--out", str(out)]
     assert cli.main(argv) == 2
     err = capsys.readouterr().err

@@ -253,3 +253,16 @@ def test_restart_takes_the_runs_problem_parameters_and_options(mpi_tmp_path):
     assert "no problem" in _one_line(e)
     r = simulate("membrane", out=out, restart=True, checkpoint_every=2)
     assert r.info["status"] == "finished" and r.info["restarted_from_step"] == 2
+
+
+def test_options_that_would_do_nothing_are_refused():
+    """A step-solver choice a contact treatment ignores, and a PETSc option no step solver reads, are
+    refused before anything is built (they were accepted, recorded in run.json and ignored)."""
+    from sdm_dolfinx import simulate
+    with pytest.raises(RunInputError, match="contact penalty has its own step solver"):
+        simulate("membrane", {"N": 4}, T=0.01, contact="penalty", vi_solver="vinewtonssls")
+    with pytest.raises(RunInputError, match="contact nitsche solves its steps through one factorisation"):
+        simulate("disc", {"level": 1}, T=1e-4, contact="nitsche", linear="cg-amg")
+    with pytest.raises(RunInputError, match="PETSc option -sdm_bogus: no step solver reads it") as e:
+        simulate("membrane", {"N": 4}, T=0.01, petsc_options={"bogus": 1, "ksp_rtol": 1e-12})
+    assert str(e.value).count("no step solver reads it") == 1             # ksp_rtol is a solver's
