@@ -170,10 +170,14 @@ class _Truths:
     def truth_of(self, job, result, observer):
         """(truth, field rows) for :func:`~sdm_dolfinx.post.metrics.series_metrics`."""
         if self.cmp.exact is not None:
-            return cm.exact_truth(self.exact(job), self.problem(job).probe, job.T), observer.table()
+            truth = cm.exact_truth(self.exact(job), self.problem(job).probe, job.T)
+            truth["u_scale"] = observer.displacement_scale()
+            return truth, observer.table()
         rows = compare_reference.field_rows(job.folder, self.ref.folder, self.comm)
         rows["gap"] = observer.table()["gap"]
-        return cm.reference_truth(self.ref_ts), rows
+        truth = cm.reference_truth(self.ref_ts)
+        truth["u_scale"] = rows.pop("u_scale")
+        return truth, rows
 
     def reference(self):
         """Run the reference (problems without an exact solution) unless done; keep its series."""
@@ -214,8 +218,10 @@ def _progress(rec):
              if rec.get("ran_again_because") else "")
     if rec.get("status") != "finished":
         return f"{rec.get('status')}: {rec.get('reason', '')}{again}"
+    stress = ("n/d" if "stress_contact_L2t" in (rec.get("undefined") or {})
+              else f"{rec['stress_contact_L2t']:.2e}")
     return (f"energy error {rec['energy_error_max']:.2e}, u Linf(L2) {rec.get('u_LinfL2', math.nan):.2e}, "
-            f"stress L2(t) {rec['stress_contact_L2t']:.2e}, penetration {rec['penetration_max']:.1e}{again}")
+            f"stress L2(t) {stress}, penetration {rec['penetration_max']:.1e}{again}")
 
 
 # ----------------------------------------------------------------------------- outputs

@@ -13,6 +13,7 @@ from dolfinx import fem
 
 from sdm_dolfinx import io as sdm_io
 from sdm_dolfinx import compat, post
+from sdm_dolfinx.post import metrics as cm
 
 #: two stored times are the same time to this relative tolerance
 SAME_TIME = 1e-9
@@ -36,7 +37,8 @@ class _Stored:
 
 def field_rows(run_folder, ref_folder, comm, padding=None):
     """Rows ``t, err_L2, err_H1, norm_L2, norm_H1`` (the FieldErrors columns, the reference's norms)
-    at every time the run and the reference both stored (collective).
+    at every time the run and the reference both stored (collective), and ``u_scale``: the
+    reference's max_n ||u(t_n)||_L2 / sqrt(|Omega|) (a displacement: what "zero" is measured against).
 
     Args:
         padding: how far outside the reference mesh a point of the run's mesh may lie (a curved
@@ -59,7 +61,10 @@ def field_rows(run_folder, ref_folder, comm, padding=None):
         e.x.array[:] -= u_ref.x.array
         rows.append((t, _l2(e, comm), post.h1_norm(e), _l2(u_ref, comm), post.h1_norm(u_ref)))
     a = np.array(rows, dtype=float).reshape(-1, 5)
-    return {c: a[:, k] for k, c in enumerate(("t", "err_L2", "err_H1", "norm_L2", "norm_H1"))}
+    out = {c: a[:, k] for k, c in enumerate(("t", "err_L2", "err_H1", "norm_L2", "norm_H1"))}
+    measure = cm.domain_measure(ref.W.mesh, comm)
+    out["u_scale"] = float(np.max(out["norm_L2"])) / math.sqrt(measure) if len(a) and measure > 0 else None
+    return out
 
 
 def _l2(u, comm):

@@ -6,7 +6,7 @@ import math
 import numpy as np
 
 from sdm_dolfinx.study.text import html_table
-from sdm_dolfinx.post.metrics import METRICS
+from sdm_dolfinx.post.metrics import CONTACT_PHASE, METRICS
 
 #: the metrics whose convergence rate the tables show (the displacement's first)
 RATE_METRICS = ("u_LinfL2", "u_LinfH1", "u_contact_L2t", "stress_contact_L2t", "energy_error_max")
@@ -92,7 +92,8 @@ def ranking(records):
     h, dt = finest(records)
     at = [r for r in records if r["h"] == h and r["dt"] == dt]
     table = {r["method"]: {"status": r.get("status"), "reason": r.get("reason", ""), "class": r.get("class", ""),
-                           "values": {k: _value(r, k) for k in METRICS}, "ranks": {}} for r in at}
+                           "values": {k: _value(r, k) for k in METRICS}, "ranks": {},
+                           "undefined": dict(r.get("undefined") or {})} for r in at}
     ranked = [m for m, e in table.items() if e["status"] not in UNRANKED]
     for k in METRICS:
         vals = {m: _tie(table[m]["values"][k]) for m in ranked if not math.isnan(table[m]["values"][k])}
@@ -102,7 +103,12 @@ def ranking(records):
         rs = [e["ranks"][k] for k in RANKED if k in e["ranks"]]
         e["mean_rank"] = float(np.mean(rs)) if rs else math.inf
     order = sorted(table, key=lambda m: (table[m]["status"] in UNRANKED, table[m]["mean_rank"]))
-    return {"h": h, "dt": dt, "order": order, "methods": table}
+    undefined = {}
+    for e in table.values():
+        for k, why in e["undefined"].items():
+            undefined.setdefault(k, why)
+    ranked_metrics = [k for k in RANKED if any(k in table[m]["ranks"] for m in ranked)]
+    return {"h": h, "dt": dt, "order": order, "methods": table, "undefined": undefined, "ranked": ranked_metrics}
 
 
 def _cell(v):
@@ -127,7 +133,8 @@ def table_rows(rank, fitted):
         if e["status"] in UNRANKED:
             rows.append(["-", m, e["class"], f"{e['status']}: {e['reason']}"] + [""] * (len(header) - 4))
             continue
-        cells = [f"{_cell(e['values'][k])} ({e['ranks'].get(k, '-')})" for k in RANKED + COSTS]
+        cells = ["n/d" if k in e["undefined"] else f"{_cell(e['values'][k])} ({e['ranks'].get(k, '-')})"
+                 for k in RANKED + COSTS]
         rows.append([str(i + 1), m, e["class"], f"{e['mean_rank']:.2f}"] + cells
                     + [_rate_cell((fitted.get(m) or {}).get(k)) for k in RATE_METRICS[:3]])
     return header, rows
@@ -137,20 +144,38 @@ def markdown(rank, fitted, title):
     """The ranking as a Markdown table (a heading, what it shows, the table, the metrics' meaning)."""
     header, rows = table_rows(rank, fitted)
     lines = [f"## {title}", "",
-             f"Methods ranked by their mean rank over {len(RANKED)} accuracy metrics at h = {rank['h']:g}, "
-             f"dt = {rank['dt']:g} (each cell: value (rank)); rates: fitted slopes of log(error) against log(h) "
-             "(see compare.json for the refinement path of each).", "",
+             f"Methods ranked by their mean rank over the {len(rank['ranked'])} accuracy metrics defined here at "
+             f"h = {rank['h']:g}, dt = {rank['dt']:g} (each cell: value (rank); n/d: not defined, not ranked); "
+             "rates: fitted slopes of log(error) against log(h) (see compare.json for the refinement path of each).",
+             ""] + [x for line in no_contact(rank) for x in (f"**{line}**", "")] + [
              "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     lines += ["| " + " | ".join(c.replace("|", "/") for c in r) + " |" for r in rows]
+    if rank["undefined"]:
+        lines += ["", "Not defined (not ranked):"] + [f"- `{k}`: {why}" for k, why in rank["undefined"].items()]
     lines += ["", "Metrics:"] + [f"- `{k}`: {v}" for k, v in METRICS.items()]
     return "\n".join(lines) + "\n"
+
+
+def no_contact(rank):
+    """The sentence (a list of zero or one) saying that the window holds no contact, so that the
+    contact-phase metrics are not ranked."""
+    why = [w for k, w in rank["undefined"].items() if k in CONTACT_PHASE and w.startswith("no contact")]
+    if not why:
+        return []
+    return [f"This comparison has {why[0]}: its contact-phase metrics ({', '.join(CONTACT_PHASE)}) are not "
+            f"defined and not ranked; lengthen T to compare contact."]
 
 
 def html_section(rank, fitted, title):
     """The ranking as an HTML fragment (a heading, a sentence, the table)."""
     header, rows = table_rows(rank, fitted)
-    return (f"<h3>{html.escape(title)}</h3><p>Ranked by the mean rank over {len(RANKED)} accuracy metrics at "
-            f"h = {rank['h']:g}, dt = {rank['dt']:g}; each cell is value (rank).</p>" + html_table(header, rows)
+    undefined = ("<p>Not defined (not ranked):</p><ul>" + "".join(
+        f"<li><code>{k}</code>: {html.escape(why)}</li>" for k, why in rank["undefined"].items()) + "</ul>"
+        if rank["undefined"] else "")
+    return (f"<h3>{html.escape(title)}</h3><p>Ranked by the mean rank over the {len(rank['ranked'])} accuracy "
+            f"metrics defined here at h = {rank['h']:g}, dt = {rank['dt']:g}; each cell is value (rank); n/d: not "
+            f"defined, not ranked.</p>" + "".join(f"<p><b>{html.escape(s)}</b></p>" for s in no_contact(rank))
+            + html_table(header, rows) + undefined
             + "<ul>" + "".join(f"<li><code>{k}</code>: {html.escape(v)}</li>" for k, v in METRICS.items())
             + "</ul>")
 

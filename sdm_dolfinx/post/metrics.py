@@ -32,6 +32,11 @@ CONTACT_TOL = 1e-2
 #: the oscillation index looks at each contact interval widened by this fraction of its length on
 #: each side (the entering and leaving jumps belong to the contact phase)
 WINDOW = 0.25
+#: a reference whose RMS over [0, T] is below this fraction of its scale is zero (to round-off): a
+#: relative error against it is not defined (it came out as 1e13 against a displacement of ~1e-16)
+ZERO_REFERENCE = 1e-8
+#: the metrics of the contact phases: not defined when the reference has no contact in [0, T]
+CONTACT_PHASE = ("stress_contact_L2t", "oscillation_index", "release_time_error")
 
 
 # ----------------------------------------------------------------------------- scalars of a series
@@ -180,7 +185,8 @@ def series_metrics(ts, info, truth, rows=None):
             (callables on arrays of times) and ``intervals`` (the contact intervals).
         rows: :meth:`FieldErrors.table` (None: no field errors, no observed gap).
     Returns:
-        dict of floats (see :data:`METRICS`).
+        dict of floats (see :data:`METRICS`), and ``undefined``: metric -> why it is not defined (its
+        value nan: :func:`undefined_metrics`).
     """
     t = np.asarray(ts["t"], dtype=float)
     eT, emax = energy_errors(ts["energy"])
@@ -199,6 +205,35 @@ def series_metrics(ts, info, truth, rows=None):
         out["u_LinfH1"] = linf_relative(rows["err_H1"], rows["norm_H1"])
     out["penetration_max"] = max_penetration(gaps)
     out["newton_per_step"], out["wall_per_step"] = cost_per_step(ts, info)
+    out["undefined"] = undefined_metrics(t, u_ex, s_ex, truth)
+    out.update({k: math.nan for k in out["undefined"]})
+    return out
+
+
+def undefined_metrics(t, u_ex, s_ex, truth):
+    """metric -> the reason it is not defined for these reference values: the contact-phase metrics
+    when the reference has no contact in [0, T]; a relative error whose reference at the contact
+    point is zero, or zero to round-off against the reference's own scale (``truth["u_scale"]``:
+    the reference field's max_n ||u(t_n)||_L2 / sqrt(|Omega|), a displacement; u_scale / T for a
+    velocity), never against the run it judges."""
+    what = truth.get("what", "the reference")
+    T = float(t[-1]) if len(t) else 0.0
+    out = {}
+    if not any(a < T for a, _ in truth["intervals"]):
+        out.update({k: f"no contact in [0, {T:g}] ({what})" for k in CONTACT_PHASE})
+    scale = truth.get("u_scale")
+    scale = float(scale) if scale is not None and np.isfinite(scale) and scale > 0 else None
+    refs = {"u_contact_L2t": ("displacement", u_ex, scale), "stress_contact_L2t": ("contact stress", s_ex, None),
+            "v_contact_L2t": ("velocity", velocity_of(t, u_ex), scale / T if scale and T > 0 else None)}
+    for k, (name, ref, s) in refs.items():
+        rms = math.sqrt(float(np.mean(np.asarray(ref, dtype=float) ** 2))) if len(ref) else 0.0
+        if k in out:
+            continue
+        if rms == 0.0:
+            out[k] = f"{what}'s {name} at the contact point is zero on [0, {T:g}]"
+        elif s is not None and rms <= ZERO_REFERENCE * s:
+            out[k] = (f"{what}'s {name} at the contact point is zero to round-off (RMS {rms:.2g} against its "
+                      f"scale {s:.2g})")
     return out
 
 
@@ -232,7 +267,7 @@ def exact_truth(exact, probe, T=None):
         return np.array([float(exact.contact_stress(float(r))) for r in np.atleast_1d(t)])
 
     intervals = exact.intervals(T) if T is not None else exact.contact_intervals
-    return {"u": u, "s": s, "intervals": list(intervals)}
+    return {"u": u, "s": s, "intervals": list(intervals), "what": "the exact solution"}
 
 
 def reference_truth(ts_ref):
@@ -241,7 +276,13 @@ def reference_truth(ts_ref):
     tr, ur, sr = (np.asarray(ts_ref[k], dtype=float) for k in ("t", "u_probe", "lambda_probe"))
     tol = CONTACT_TOL * max(float(np.max(np.abs(sr), initial=0.0)), 1e-300)
     return {"u": lambda t: np.interp(t, tr, ur), "s": lambda t: np.interp(t, tr, sr),
-            "intervals": contact_intervals_of(tr, sr, tol)}
+            "intervals": contact_intervals_of(tr, sr, tol), "what": "the reference run"}
+
+
+def domain_measure(mesh, comm):
+    """|Omega|, reduced over the ranks."""
+    one = fem.Constant(mesh, 1.0)
+    return comm.allreduce(float(fem.assemble_scalar(compat.form(one * ufl.dx(domain=mesh)))), op=MPI.SUM)
 
 
 def _scalar(v):
@@ -285,6 +326,12 @@ class FieldErrors:
         def sq(f):
             return (compat.form(ufl.inner(f, f) * ufl.dx), compat.form(ufl.inner(ufl.grad(f), ufl.grad(f)) * ufl.dx))
         self._forms = (sq(self.e), sq(self.ue))
+        self.measure = domain_measure(d.problem.mesh, self.comm)
+
+    def displacement_scale(self):
+        """The exact field's max_n ||u(t_n)||_L2 / sqrt(|Omega|), a displacement (None without rows)."""
+        norms = [r[3] for r in self.rows if np.isfinite(r[3])]
+        return max(norms) / math.sqrt(self.measure) if norms and getattr(self, "measure", 0) > 0 else None
 
     def _exact_values(self, x, t):
         v = np.asarray(self.exact.displacement(x, t), dtype=float)

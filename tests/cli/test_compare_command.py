@@ -105,3 +105,18 @@ def test_compare_never_reuses_a_run_of_other_settings(first, second, changed, mp
     assert cli.main(["compare", *second, *grid]) == 0                    # now the same runs: reused
     if COMM.rank == 0:
         assert "2 of 2 runs done before" in capsys.readouterr().out
+
+
+def test_a_window_without_contact_ranks_no_contact_metric(mpi_tmp_path):
+    """compare on the rod up to T = 0.5 (first impact at t = 1): the contact-phase metrics are not defined
+    (not 0 for everybody), nobody is ranked on them, and ranking.md says the window has no contact."""
+    out = mpi_tmp_path / "cmp"
+    assert cli.main(["compare", "--problem", "rod1d", "--methods", "sdm-p2p1,penalty-midpoint,standard-newmark",
+                     "--h", "0.1", "--dt", "0.01", "--T", "0.5", "--out", str(out)]) == 0
+    if COMM.rank == 0:
+        data = json.loads((out / "compare.json").read_text())
+        for m in data["ranking"]["methods"].values():
+            assert not {"stress_contact_L2t", "oscillation_index", "release_time_error"} & set(m["ranks"])
+            assert m["values"]["stress_contact_L2t"] != 0.0
+        text = (out / "ranking.md").read_text()
+        assert "This comparison has no contact in [0, 0.5]" in text and "| n/d |" in text

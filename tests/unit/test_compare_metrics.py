@@ -98,7 +98,51 @@ def test_series_metrics_of_the_exact_series():
     assert m["oscillation_index"] == pytest.approx(1.0) and m["release_time_error"] <= dt + 1e-12
     assert m["penetration_max"] == 0 and m["newton_per_step"] == 2.0
     assert m["wall_per_step"] == pytest.approx(3.0 / 1500)
-    assert set(m) <= set(cm.METRICS)
+    assert set(m) - {"undefined"} <= set(cm.METRICS) and m["undefined"] == {}
+
+
+def test_a_metric_against_a_zero_reference_is_not_defined():
+    """Before the rod's first contact (T = 0.5 < 1) the exact stress is 0: the contact-phase metrics are
+    not defined (nan, with the reason), not "0 for everybody"; a reference displacement at the contact
+    point that is zero to round-off against the reference's own scale is not defined either, whatever
+    the judged run did (it came out as 1e13); with no scale only an exact zero counts."""
+    dt = 2e-3
+    t = np.arange(0, 251) * dt
+    u = lambda s: 0.5 - 0.5 * np.asarray(s)                                  # noqa: E731
+    truth = {"u": u, "s": _rod_stress, "intervals": [(1.0, 2.0)], "what": "the exact solution"}
+    ts = {"t": t, "energy": np.full(t.size, 0.125), "u_probe": u(t) + 1e-3, "lambda_probe": np.zeros(t.size),
+          "newton_its": np.ones(t.size)}
+    m = cm.series_metrics(ts, {"steps": 250}, truth)
+    assert set(m["undefined"]) == set(cm.CONTACT_PHASE)
+    assert all("no contact in [0, 0.5]" in why for why in m["undefined"].values())
+    assert all(math.isnan(m[k]) for k in cm.CONTACT_PHASE) and m["u_contact_L2t"] > 0
+    still = {"u": lambda s: np.full(np.size(s), 1e-20), "s": lambda s: np.ones(np.size(s)), "intervals": [(0.0, 2.0)],
+             "what": "the reference run", "u_scale": 0.5}
+    for u_probe in (np.zeros(t.size), np.full(t.size, 1e3)):                 # a good run and a wild one
+        m = cm.series_metrics({**ts, "u_probe": u_probe}, {"steps": 250}, still)
+        assert "zero to round-off" in m["undefined"]["u_contact_L2t"] and math.isnan(m["u_contact_L2t"])
+        assert "v_contact_L2t" in m["undefined"] and "stress_contact_L2t" not in m["undefined"]
+    m = cm.series_metrics(ts, {"steps": 250}, {**still, "u_scale": None})
+    assert "u_contact_L2t" not in m["undefined"] and m["u_contact_L2t"] > 1e10      # no scale: defined
+
+
+def test_the_ranking_leaves_undefined_metrics_out_and_says_why():
+    """Metrics not defined for the window are shown as n/d, ranked by nobody, counted out of the mean
+    rank, and a window without contact is said in the ranking's text."""
+    base = {"h": 0.1, "dt": 0.05, "status": "finished"}
+    why = {k: "no contact in [0, 0.5] (the exact solution)" for k in cm.CONTACT_PHASE}
+    recs = [{**base, "method": "a", **{k: 1.0 for k in ct.RANKED}, "undefined": why},
+            {**base, "method": "b", **{k: 2.0 for k in ct.RANKED}, "undefined": why}]
+    for r in recs:
+        r.update({k: math.nan for k in why})
+    r = ct.ranking(recs)
+    assert not any(k in r["methods"][m]["ranks"] for m in "ab" for k in cm.CONTACT_PHASE)
+    assert r["ranked"] == [k for k in ct.RANKED if k not in cm.CONTACT_PHASE] and r["order"] == ["a", "b"]
+    header, rows = ct.table_rows(r, {})
+    assert rows[0][header.index("stress_contact_L2t")] == "n/d"
+    text = ct.markdown(r, {}, "t")
+    assert f"over the {len(ct.RANKED) - 3} accuracy metrics defined here" in text
+    assert "This comparison has no contact in [0, 0.5]" in text and "Not defined (not ranked):" in text
 
 
 # ----------------------------------------------------------------------------- field errors
