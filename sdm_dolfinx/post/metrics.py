@@ -306,6 +306,8 @@ class FieldErrors:
     """
 
     COLUMNS = ("t", "err_L2", "err_H1", "norm_L2", "norm_H1", "gap")
+    #: it changes nothing of the run (the run need not watch its forms: sdm_dolfinx.method.frozen)
+    read_only = True
 
     def __init__(self, exact=None, raise_degree=0):
         self.exact, self.raise_degree = exact, int(raise_degree)

@@ -61,6 +61,8 @@ def execute(problem, options, *, out=None, restart=False, progress=False, petsc_
     try:
         loop = _Loop(problem, o, petsc_options, wall0, law, kept)
         loop.observe = Observer(observe, loop.comm) if observe is not None else None     # or ObserveError
+        if on_step is not None or (observe is not None and not getattr(observe, "read_only", False)):
+            loop.discretisation.frozen.watch_forms()        # user code runs during the run: watch the forms too
         signum = stop.agreed(loop.comm)
         if signum:
             raise Interrupted("interrupted during the set-up, before anything was written", signum)

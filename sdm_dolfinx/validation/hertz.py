@@ -127,6 +127,9 @@ class PressureAtPeak:
     """``simulate``'s observer: the multipliers lambda_i, lumped areas |Gamma_i| and radii r_i of the
     constrained vertices at the step of largest contact force (gathered by :meth:`result`)."""
 
+    #: it changes nothing of the run (the run need not watch its forms: sdm_dolfinx.method.frozen)
+    read_only = True
+
     def __init__(self):
         self.best, self.t = -1.0, None
         self.r = self.lam = self.area = np.zeros(0)
