@@ -84,11 +84,7 @@ def simulate(problem: Any = None, params: Optional[Mapping[str, Any]] = None, *,
          "contact_options": contact_options, "friction_options": friction_options, **deprecated})
     session = dict(progress=progress, handle_signals=handle_signals, on_step=on_step, observe=observe,
                    petsc_options=petsc_options, extra_info=extra_info, constraint_tol=constraint_tol)
-    unknown = [m for m in map(unknown_option, petsc_options or {}) if m]
-    if unknown:
-        raise RunInputError("; ".join(unknown))
-    if allow_changed_source and not restart:
-        raise RunInputError("allow_changed_source is for a restart only (restart=True)")
+    _refuse_early(petsc_options, allow_changed_source, restart)
     if isinstance(problem, Problem):
         if allow_changed_source:
             session["changed_source"] = ["allowed by the caller (allow_changed_source=True)"]
@@ -97,6 +93,15 @@ def simulate(problem: Any = None, params: Optional[Mapping[str, Any]] = None, *,
     the_plan = check_run(problem, params, given, out=out, overwrite=overwrite, restart=restart, comm=comm,
                          allow_changed_source=allow_changed_source)
     return the_plan.run(comm, **session)
+
+
+def _refuse_early(petsc_options, allow_changed_source, restart):
+    """RunInputError for a PETSc option no step solver reads, or allow_changed_source without a restart."""
+    unknown = [m for m in map(unknown_option, petsc_options or {}) if m]
+    if unknown:
+        raise RunInputError("; ".join(unknown))
+    if allow_changed_source and not restart:
+        raise RunInputError("allow_changed_source is for a restart only (restart=True)")
 
 
 def _run_built(problem, params, given, out, overwrite, restart, comm, session):
