@@ -17,7 +17,9 @@ import numpy as np
 from sdm_dolfinx import compat
 from sdm_dolfinx.contact import friction as _friction
 from sdm_dolfinx.errors import SdmError
+from sdm_dolfinx.method.bound_direction import misdirected_bound
 from sdm_dolfinx.method.discretisation import Discretisation
+from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.solvers import VIError
 from sdm_dolfinx.errors import StepError
 from sdm_dolfinx.run.integrator import Integrator
@@ -101,6 +103,9 @@ class _Loop:
         self.wall0, self.dt, self.comm = wall0, dt, problem.mesh.comm
         self.discretisation = d = Discretisation(problem, o["pair"], o["mass"], o["quadrature_degree"],
                                                  constrain=o["constrain"] or "vertices")
+        wrong = misdirected_bound(problem, d.cx, d.comm)        # the bound names another component
+        if wrong:
+            raise DiscretisationError(wrong)
         try:
             self.integ = Integrator(
                 d, scheme, dt, vi_solver, kept[0] if kept else linear, petsc_options, friction,
