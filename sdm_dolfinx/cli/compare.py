@@ -67,6 +67,10 @@ def build_parser():
                "and time steps: metrics against the exact solution (or the finest well-posed run), figures and "
                "a ranking. Resumable: a rerun skips the finished runs.")
     p.add_argument("--problem", default=None, help=f"a registered problem ({', '.join(problems.names())})")
+    p.add_argument("--problem-file", type=Path, default=None, metavar="FILE",
+                   help="a problem of your own: a Python file defining PROBLEM = ProblemSpec(...) with a mesh-size "
+                        "parameter (h; nx and ny; N or n); without an exact solution the reference is the finest "
+                        "well-posed run (--reference)")
     p.add_argument("--methods", default="all", help="'all' or a comma-separated list (see --list)")
     p.add_argument("--h", type=number_list, default=None, help="mesh sizes, comma-separated (1/20 allowed)")
     p.add_argument("--dt", type=number_list, default=None, help="time steps, comma-separated: the grid is every h "
@@ -87,14 +91,16 @@ def build_parser():
 
 def _comparison(args):
     """The checked comparison (UsageError, one line, otherwise)."""
-    if args.problem is None:
-        raise UsageError("--problem is required (or --list)")
+    if args.problem is None and args.problem_file is None:
+        raise UsageError("--problem is required (or --problem-file, or --list)")
+    if args.problem is not None and args.problem_file is not None:
+        raise UsageError("--problem and --problem-file: choose one")
     if args.dt is not None and args.dt_ratio is not None:
         raise UsageError("give --dt or --dt-ratio, not both")
     params = dict(args.param)
     try:
-        cmp = compare.make_comparison(args.problem, args.methods, args.h, args.dt, args.dt_ratio, args.T,
-                                      args.out, args.quick, params, args.reference)
+        cmp = compare.make_comparison(args.problem or str(args.problem_file), args.methods, args.h, args.dt,
+                                      args.dt_ratio, args.T, args.out, args.quick, params, args.reference)
         cmp.spec.values(compare.mesh_params(cmp.spec, cmp.grid[0][0], params), cli=False)
     except (ValueError, KeyError) as e:
         raise UsageError(str(e).strip("'\"")) from None

@@ -97,22 +97,29 @@ class Comparison:
 
 
 def mesh_params(spec, h, given=None):
-    """The problem's parameters for mesh size ``h``: its ``h`` parameter, or ``N`` (or ``NX``) =
-    length / h (``length``, ``L`` or 1), or ``nx``, ``ny`` = width / h, height / h; ``given`` for the others."""
+    """The problem's parameters for mesh size ``h``: its ``h`` parameter; or cells along and across,
+    ``nx``, ``ny`` (any case: ``Nx``, ``Ny``) = width / h, height / h (``width``, ``length``, ``L`` and
+    ``height``, ``H``, else 1); or cells along one length, ``N``, ``NX`` or ``n`` = length / h; ``given``
+    for the others."""
     given = dict(given or {})
-    names = [p.name for p in spec.params]
+    names = {p.name.lower(): p.name for p in spec.params}
 
-    def value(n, default):
-        return float(given.get(n, spec.param(n).default if n in names else default))
-    if "h" in names:
+    def value(*options, default=1.0):
+        for n in options:
+            if n in names.values():
+                return float(given.get(n, spec.param(n).default))
+        return default
+
+    def cells(size):
+        return max(1, int(round(size / h)))
+    if "h" in names.values():
         return {**given, "h": h}
-    for n in ("N", "NX"):
-        if n in names:
-            return {**given, n: max(1, int(round(value("length", value("L", 1.0)) / h)))}
     if "nx" in names and "ny" in names:
-        return {**given, "nx": max(1, int(round(value("width", 1.0) / h))),
-                "ny": max(1, int(round(value("height", 1.0) / h)))}
-    raise ValueError(f"problem {spec.name!r} has no mesh-size parameter the comparison knows (h, N, nx/ny)")
+        return {**given, names["nx"]: cells(value("width", "length", "L")), names["ny"]: cells(value("height", "H"))}
+    for n in ("N", "NX", "n"):
+        if n in names.values():
+            return {**given, n: cells(value("length", "L", "width"))}
+    raise ValueError(f"problem {spec.name!r} has no mesh-size parameter the comparison knows (h; nx and ny; N or n)")
 
 
 def make_comparison(problem, methods="all", hs=None, dts=None, dt_ratio=None, T=None, out=None, quick=False,
@@ -121,8 +128,14 @@ def make_comparison(problem, methods="all", hs=None, dts=None, dt_ratio=None, T=
 
     The grid is every h x every dt of ``dts``, or dt = ``dt_ratio`` x h for each h (a path along
     which h and dt are refined together); ``quick`` takes the problem's :data:`QUICK` grid for what
-    is not given. T defaults to the problem's declared T.
+    is not given. T defaults to the problem's declared T. ``problem``: a registered name or the path of
+    a problem file (``.py``: loaded and registered, compared by its name from then on).
     """
+    if str(problem).endswith(".py"):
+        try:
+            problem = problems.load_file(problem).name
+        except problems.ProblemInputError as e:
+            raise ValueError(str(e)) from None
     spec = problems.get(problem) if problem in problems.names() else None
     if spec is None:
         raise ValueError(f"unknown problem {problem!r}; choose one of {', '.join(problems.names())}")

@@ -23,7 +23,7 @@ from sdm_dolfinx import io as sdm_io
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.mpiutil import atomic_write_text, json_text
 from sdm_dolfinx.post import metrics as cm
-from sdm_dolfinx.problems import ProblemInputError
+from sdm_dolfinx.problems import ProblemInputError, get as get_problem
 from sdm_dolfinx.run import Interrupted, RunInputError, grouped, num_steps, plan, simulate
 from sdm_dolfinx.run.result import BoundaryGapWarning
 from sdm_dolfinx.run import SolverSetupError
@@ -86,11 +86,13 @@ def _write_metrics(job, record, comm):
 def _base_record(job, problem_name):
     return {"method": job.method.name, "problem": problem_name, "h": job.h, "dt": job.dt, "T": job.T,
             "params": job.params, "options": {k: v for k, v in job.method.options.items()},
-            "class": job.method.cls, "version": compat.package_version()}
+            "class": job.method.cls, "version": compat.package_version(),
+            "problem_file_sha256": get_problem(problem_name).source_sha256}
 
 
 #: what defines a run of the grid: a stored run differing in any of these is run again
-RESUME_KEY = ("method", "problem", "h", "dt", "T", "params", "options", "class", "against", "version")
+RESUME_KEY = ("method", "problem", "h", "dt", "T", "params", "options", "class", "against", "version",
+              "problem_file_sha256")
 
 
 def stale_because(done, record, folder):

@@ -120,3 +120,39 @@ def test_a_window_without_contact_ranks_no_contact_metric(mpi_tmp_path):
             assert m["values"]["stress_contact_L2t"] != 0.0
         text = (out / "ranking.md").read_text()
         assert "This comparison has no contact in [0, 0.5]" in text and "| n/d |" in text
+
+
+def test_compare_takes_a_problem_file(mpi_tmp_path):
+    """compare --problem-file: the docs' my_block.py (its mesh size the parameter n, no exact solution)
+    is compared against the refined reference run, as the built-in problems without one are; a changed
+    file runs again (its SHA-256 is part of what defines a run)."""
+    import re
+    from pathlib import Path
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "add_a_problem.md").read_text()
+    f = mpi_tmp_path / "my_block.py"
+    if COMM.rank == 0:
+        f.write_text(re.search(r"Save as `my_block.py`.*?```python\n(.*?)```", doc, re.S).group(1))
+    COMM.Barrier()
+    out = mpi_tmp_path / "cmp"
+    argv = ["compare", "--problem-file", str(f), "--methods", "sdm-p2p1,penalty-midpoint", "--h", "10",
+            "--dt", "4e-5", "--T", "8e-4", "--out", str(out)]
+    from sdm_dolfinx.problems import registry
+    saved = dict(registry._REGISTRY)
+    try:
+        assert cli.main(argv) == 0
+        if COMM.rank == 0:
+            data = json.loads((out / "compare.json").read_text())
+            assert data["problem"] == "my_block" and "reference run" in (out / "ranking.md").read_text()
+            assert {r["params"]["n"] for r in data["records"]} == {2}
+            f.write_text(f.read_text().replace('Param("E", 1000.0', 'Param("E", 2000.0'))
+        COMM.Barrier()
+        registry._REGISTRY.clear()
+        registry._REGISTRY.update(saved)
+        assert cli.main(argv) == 0
+        if COMM.rank == 0:
+            recs = json.loads((out / "compare.json").read_text())["records"]
+            assert all("problem_file_sha256" in r.get("ran_again_because", []) for r in recs)
+    finally:
+        registry._REGISTRY.clear()
+        registry._REGISTRY.update(saved)
+    assert cli.main(["compare", "--problem", "rod1d", "--problem-file", str(f), "--quick"]) == 2
