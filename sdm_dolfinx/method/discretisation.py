@@ -357,10 +357,10 @@ class Discretisation:
         return {"dim_W": int(nW), "dim_H": int(nH), "N_g": int(self.num_constraints)}
 
     def initial_state(self):
-        """(U0, Vbar0): interpolants of u0 and v0 in W, with the Dirichlet values imposed."""
+        """(U0, Vbar0): u0 (an equilibrium start's ``for_constraint(kind)``) and v0 in W, Dirichlet values imposed."""
         p = self.problem
         u0, v0 = fem.Function(self.W), fem.Function(self.W)
-        u0.interpolate(p.u0)
+        u0.interpolate(getattr(p.u0, "for_constraint", lambda kind: p.u0)(self.constrain))
         v0.interpolate(p.v0)
         U, V = compat.petsc_vec(u0).copy(), compat.petsc_vec(v0).copy()
         if self.ddofs.size:

@@ -120,23 +120,26 @@ def _on_bottom(height):
 ELEMENTS_BY_POINTS = {3: ("Lagrange", 1), 4: ("P+", 1), 6: ("Lagrange", 2)}
 
 
-def static_solution(msh, element, a, l, x_fixed, on_bottom):
+def static_solution(msh, element, a, l, x_fixed, on_bottom, kind="vertices"):
     """The static displacement in ``element`` (a vector element) under the load: A u = L with
-    u_y = 0 at the bottom vertices and u_x = 0 at the bottom vertex x = ``x_fixed`` (which
-    removes the rigid translation along x: the bottom is otherwise free to slide, the
-    frictionless bilateral support).
+    u_y = 0 at the bottom vertices (``kind`` "nodes": at every bottom node, P2's mid-edge nodes
+    too) and u_x = 0 at the bottom vertex x = ``x_fixed`` (which removes the rigid translation
+    along x: the bottom is otherwise free to slide, the frictionless bilateral support).
 
     In the element of the run's W^h it is the discrete equilibrium: the foundation's nodal
-    reactions A u - L sit at the bottom vertices' y dofs only (where the method's constraint
-    (13) acts), sum to m g, and a run started there stays there. Solved with a direct
-    factorisation (MUMPS, any number of ranks).
+    reactions A u - L sit at the y dofs where the run's constraint acts (the bottom vertices,
+    eq. (13), or every bottom node), sum to m g, and a run started there stays there. Solved
+    with a direct factorisation (MUMPS, any number of ranks).
     """
     V = compat.function_space(msh, element)
     verts = dmesh.locate_entities(msh, 0, on_bottom)
+    held = (fem.locate_dofs_topological(V.sub(1), msh.topology.dim - 1,
+                                        dmesh.locate_entities(msh, msh.topology.dim - 1, on_bottom))
+            if kind == "nodes" else fem.locate_dofs_topological(V.sub(1), 0, verts))
     tol = 1e-10 * max(abs(x_fixed), 1.0)
     fixed = dmesh.locate_entities(msh, 0, lambda x: on_bottom(x) & (np.abs(x[0] - x_fixed) <= tol))
     zero = PETSc.ScalarType(0.0)
-    bcs = [fem.dirichletbc(zero, fem.locate_dofs_topological(V.sub(1), 0, verts), V.sub(1)),
+    bcs = [fem.dirichletbc(zero, held, V.sub(1)),
            fem.dirichletbc(zero, fem.locate_dofs_topological(V.sub(0), 0, fixed), V.sub(0))]
     u, w = ufl.TrialFunction(V), ufl.TestFunction(V)
     A = compat.assemble_matrix(compat.form(a(u, w)), bcs)
@@ -170,11 +173,23 @@ class StaticStart:
     Collective: every rank calls it, as ``Function.interpolate`` is.
     """
 
-    def __init__(self, msh, solve, label="block --start equilibrium", instead="--start rest"):
-        """``solve(element) -> fem.Function``: the static solution in a vector ``element``;
-        ``label`` and ``instead`` name the option and its alternative in the error message."""
-        self.msh, self.solve, self.label, self.instead = msh, solve, label, instead
+    def __init__(self, msh, solve, label="block --start equilibrium", instead="--start rest", kinds=("vertices",),
+                 kind="vertices"):
+        """``solve(element, kind) -> fem.Function``: the static solution in a vector ``element`` with
+        the constraint of ``kind`` (one of ``kinds``: "vertices", "nodes"); ``label`` and ``instead``
+        name the option and its alternative in the error message."""
+        self.msh, self.solve, self.label, self.instead, self.kinds, self.kind = msh, solve, label, instead, kinds, kind
         self.solutions = {}
+
+    def for_constraint(self, kind):
+        """The start for the run's constraint kind (the Discretisation asks): the equilibrium with the
+        constraint held where that kind holds it (ProblemInputError for a kind it cannot solve)."""
+        if kind == self.kind:
+            return self
+        if kind not in self.kinds:
+            raise _problem.ProblemInputError(f"{self.label}: no static solution with the constraint at every "
+                                             f"{kind[:-1]} (constrain {kind}); use {self.instead}")
+        return StaticStart(self.msh, self.solve, self.label, self.instead, self.kinds, kind)
 
     def __call__(self, x):
         msh = self.msh
@@ -190,7 +205,7 @@ class StaticStart:
             cell = compat.cell_name(msh)
             element = (compat.p1_bubble_element(cell, (2,)) if family == "P+"
                        else compat.element(family, cell, degree, (2,)))
-            self.solutions[ppc] = self.solve(element)
+            self.solutions[ppc] = self.solve(element, self.kind)
         cells = np.repeat(np.arange(ncells, dtype=np.int32), ppc)
         return self.solutions[ppc].eval(np.ascontiguousarray(x.T), cells).T
 
@@ -228,7 +243,8 @@ def _build(comm, width, height, nx, ny, E, nu, rho, gravity, v0, start):
 
     x_probe = (nx // 2) * width / nx                 # the bottom vertex nearest to the centre
     if start == "equilibrium":
-        u0 = StaticStart(msh, lambda element: static_solution(msh, element, a, l, x_probe, on_bottom))
+        u0 = StaticStart(msh, lambda element, kind: static_solution(msh, element, a, l, x_probe, on_bottom, kind),
+                         kinds=("vertices", "nodes"))
     else:
         u0 = lambda x: np.zeros((2, x.shape[1]))                             # noqa: E731
     return _problem.Problem(

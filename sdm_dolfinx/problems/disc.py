@@ -126,8 +126,8 @@ def _initial_displacement(start, msh, a, load_y, rho, contact_vertices, pins, ra
     def l_n(w):
         return rho * ufl.inner(g_n, w) * ufl.dx
 
-    return StaticStart(msh, lambda element: resting_solution(msh, element, a, l_n, contact_vertices(msh), pins,
-                                                             radius),
+    return StaticStart(msh, lambda element, kind: resting_solution(msh, element, a, l_n, contact_vertices(msh), pins,
+                                                                   radius),
                        label="disc --start equilibrium", instead="--start unstressed")
 
 

@@ -74,6 +74,22 @@ def test_frictionless_block_slides_at_v0_and_carries_mg(pair):
     assert ts["lambda_probe"].min() >= 0.0 and ts["lambda_probe"][1:].min() > 0.0
 
 
+def test_block_constrained_at_every_node_starts_from_its_own_equilibrium():
+    """--constrain nodes (P2/P1: the bottom's mid-edge nodes held too) starts from the static solution
+    with every bottom node held, so the run rests as the vertex one does: the contact force is m g at
+    every step (the solves' slack) and no bottom node ever goes below the foundation (round-off),
+    where the vertex constraint lets the mid-edge nodes sag 1.4e-4 mm. It was refused (the vertex
+    equilibrium interpolated below the bound at 10 nodes)."""
+    dt, T = 1e-4, 2e-3
+    m = 1e-6 * 20.0 * 10.0
+    ts = simulate(block.problem(), pair="P2/P1", dt=dt, T=T, constrain="nodes").timeseries
+    slack = solve_slack(dt, m, u_max=100.0 * T + 1.0, v_max=100.0)
+    assert np.max(np.abs(ts["contact_force"][1:] - m * G)) <= slack
+    assert ts["gap_min_boundary"].min() >= -1e-12
+    vertices = simulate(block.problem(), pair="P2/P1", dt=dt, T=T).timeseries
+    assert vertices["gap_min_boundary"].min() < -1e-5                # the sag --constrain nodes removes
+
+
 def test_block_dropped_from_rest_vibrates_with_the_impulse_balance():
     """--start rest: the unstressed block on the foundation sinks into its own weight and
     vibrates: the contact force swings widely around m g (measured 8 % to 192 %; we ask for
@@ -235,6 +251,8 @@ def test_run_json_records_the_new_parameters(mpi_tmp_path):
     (["block", "--nu", "0.5"], "--nu must be <= 0.49"),
     (["block", "--gravity", "-9810"], "--gravity must be >= 0"),
     (["block", "--start", "moving"], "invalid choice"),
+    (["disc", "--start", "equilibrium", "--height", "0", "--v0", "0", "--constrain", "nodes"],
+     "disc --start equilibrium: no static solution with the constraint at every node (constrain nodes)"),
 ])
 def test_bad_values_are_refused_in_one_line(argv, message, mpi_tmp_path, capsys):
     out = mpi_tmp_path / "never"
