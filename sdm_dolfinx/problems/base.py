@@ -136,7 +136,7 @@ class Problem:
         if self.stress is not None and not callable(self.stress):
             raise ProblemInputError(f"problem {self.name!r}: stress must be a callable u -> sigma(u) (UFL), or None "
                                     f"(got {type(self.stress).__name__})")
-        if self.time is not None and np.shape(getattr(self.time, "value", None)) != ():
+        if self.time is not None and (not hasattr(self.time, "value") or np.shape(self.time.value) != ()):
             raise ProblemInputError(f"problem {self.name!r}: time must be a scalar fem.Constant used by l(w) "
                                     f"(got {type(self.time).__name__})")
 

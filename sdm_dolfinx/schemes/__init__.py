@@ -24,6 +24,8 @@ def register(scheme):
     """Add a :class:`Scheme` instance to the registry."""
     if not isinstance(scheme, Scheme):
         raise TypeError(f"register() takes a Scheme, got {type(scheme).__name__}")
+    if not isinstance(scheme.name, str):        # the registry's key: --scheme NAME, run.json
+        raise TypeError(f"register() takes a Scheme with a name (a str), got name {scheme.name!r}")
     _REGISTRY[scheme.name] = scheme
     return scheme
 

@@ -72,6 +72,8 @@ class Scheme:
 
     def coefficients(self, dt):
         """(c_M, c_A) of the step matrix K = c_M M + c_A A: (alpha^2, 1), alpha = factor / dt."""
+        if self.factor is None:
+            raise NotImplementedError(f"scheme {self.name!r} has no factor: it must define coefficients()")
         alpha = self.factor / dt
         return alpha * alpha, 1.0
 
