@@ -4,6 +4,7 @@ Only this module may look at ``dolfinx.__version__``; the rest of the package ca
 these helpers, so a port to a new dolfinx touches this file alone.
 """
 import ctypes
+from typing import Any
 
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -19,8 +20,11 @@ NEW_API = DOLFINX_VERSION >= (0, 7)
 if NEW_API:  # pragma: no cover - exercised only on dolfinx >= 0.7
     import basix.ufl
 
+#: a finite element: ufl's (dolfinx 0.5) or basix.ufl's (>= 0.7); neither is annotated
+Element = Any
 
-def element(family, cell, degree, shape=()):
+
+def element(family: str, cell: str, degree: int, shape: tuple[int, ...] = ()) -> Element:
     """A Lagrange-type (or DG, Bubble) element, scalar or with value ``shape``."""
     if NEW_API:  # pragma: no cover
         return basix.ufl.element(family, cell, degree, shape=shape if shape else None)
@@ -33,7 +37,7 @@ def element(family, cell, degree, shape=()):
 BUBBLE_DEGREE = {"interval": 2, "triangle": 3, "tetrahedron": 4}
 
 
-def p1_bubble_element(cell, shape=()):
+def p1_bubble_element(cell: str, shape: tuple[int, ...] = ()) -> Element:
     """P1 enriched with the cell's bubble (the paper's P1+: the cubic bubble of a triangle; on an
     interval the quadratic one, basix's "Bubble" of degree 2, so that P1+ spans P2 there; on a
     tetrahedron the quartic one, the lowest basix has)."""
@@ -350,7 +354,7 @@ def vtk_mesh(V):
     return plot.create_vtk_mesh(V)
 
 
-_options_used = []      # [PetscOptionsUsed wrapper or None], found on first use
+_options_used: list[Any] = []      # [PetscOptionsUsed wrapper or None], found on first use
 
 
 def petsc_options_used(name):

@@ -1,29 +1,35 @@
 """The one way to run: :func:`simulate` (and :func:`launch`, its deprecated former name for a
 declared problem)."""
+from __future__ import annotations
+
 import warnings
-from typing import Any, Callable, Mapping, Optional, Union
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any, Optional, Union
 
 from mpi4py import MPI
 
-from sdm_dolfinx.problems import Problem
+from sdm_dolfinx.method.pairs import Pair
+from sdm_dolfinx.problems import Problem, ProblemSpec
 from sdm_dolfinx.run import options as run_options
 from sdm_dolfinx.run.loop import execute
 from sdm_dolfinx.run.options import RunInputError
-from sdm_dolfinx.run.planning import check_folder, check_run
-from sdm_dolfinx.run.result import Result
+from sdm_dolfinx.run.planning import Folder, check_folder, check_run
+from sdm_dolfinx.run.result import OnStep, Result
 
 
-def simulate(problem: Any = None, params: Optional[Mapping[str, Any]] = None, *, out=None, overwrite: bool = False,
-             restart: bool = False, comm=None,
-             pair: Any = None, scheme: Optional[str] = None, dt: Optional[float] = None, T: Optional[float] = None,
+def simulate(problem: Union[Problem, ProblemSpec, str, Path, None] = None, params: Optional[Mapping[str, Any]] = None,
+             *, out: Optional[Folder] = None, overwrite: bool = False, restart: bool = False,
+             comm: Optional[MPI.Comm] = None, pair: Union[str, Pair, None] = None, scheme: Optional[str] = None,
+             dt: Optional[float] = None, T: Optional[float] = None,
              mass: Optional[str] = None, vi_solver: Optional[str] = None, linear: Optional[str] = None,
              quadrature_degree: Union[int, str, None] = None, friction: Optional[str] = None,
              constrain: Optional[str] = None, contact: Optional[str] = None, write_every: Optional[int] = None,
              checkpoint_every: Optional[int] = None, scheme_options: Optional[Mapping[str, Any]] = None,
              contact_options: Optional[Mapping[str, Any]] = None,
              friction_options: Optional[Mapping[str, Any]] = None,
-             progress: bool = False, handle_signals: bool = False, on_step: Optional[Callable] = None,
-             observe: Optional[Callable] = None, petsc_options: Optional[Mapping[str, Any]] = None,
+             progress: bool = False, handle_signals: bool = False, on_step: Optional[OnStep] = None,
+             observe: Optional[Callable[..., object]] = None, petsc_options: Optional[Mapping[str, Any]] = None,
              extra_info: Optional[Mapping[str, Any]] = None, constraint_tol: float = 1e-8,
              **deprecated: Any) -> Result:
     """Run a problem from t = 0 to T; every input is checked before anything is built or written.
@@ -78,8 +84,9 @@ def simulate(problem: Any = None, params: Optional[Mapping[str, Any]] = None, *,
          "quadrature_degree": quadrature_degree, "friction": friction, "constrain": constrain, "contact": contact,
          "write_every": write_every, "checkpoint_every": checkpoint_every, "scheme_options": scheme_options,
          "contact_options": contact_options, "friction_options": friction_options, **deprecated})
-    session = dict(progress=progress, handle_signals=handle_signals, on_step=on_step, observe=observe,
-                   petsc_options=petsc_options, extra_info=extra_info, constraint_tol=constraint_tol)
+    session: dict[str, Any] = dict(progress=progress, handle_signals=handle_signals, on_step=on_step,
+                                   observe=observe, petsc_options=petsc_options, extra_info=extra_info,
+                                   constraint_tol=constraint_tol)
     if isinstance(problem, Problem):
         return _run_built(problem, params, given, out, overwrite, restart, comm, session)
     comm = MPI.COMM_WORLD if comm is None else comm
@@ -87,7 +94,8 @@ def simulate(problem: Any = None, params: Optional[Mapping[str, Any]] = None, *,
     return the_plan.run(comm, **session)
 
 
-def _run_built(problem, params, given, out, overwrite, restart, comm, session):
+def _run_built(problem: Problem, params: Optional[Mapping[str, Any]], given: Mapping[str, Any], out: Optional[Folder],
+               overwrite: bool, restart: bool, comm: Optional[MPI.Comm], session: dict[str, Any]) -> Result:
     """:func:`simulate` of a built Problem: the same checks but of its parameters (built already)."""
     if params:
         raise RunInputError(f"params are the parameters of a declared problem; problem {problem.name!r} is built "
@@ -102,7 +110,8 @@ def _run_built(problem, params, given, out, overwrite, restart, comm, session):
     return execute(problem, opts, out=out, restart=restart, folder_seen=seen, **session)
 
 
-def launch(problem=None, params=None, **kwargs):
+def launch(problem: Union[Problem, ProblemSpec, str, Path, None] = None,
+           params: Optional[Mapping[str, Any]] = None, **kwargs: Any) -> Result:
     """Deprecated: :func:`simulate` runs a declared problem the same way (same arguments); a
     FutureWarning says so."""
     warnings.warn("sdm_dolfinx.run.launch() is deprecated: call sdm_dolfinx.simulate() with the same arguments",
