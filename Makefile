@@ -1,4 +1,5 @@
-# sdm_dolfinx: `make demo` runs the membrane comparison, `make test` the tests on 1 and 2 ranks.
+# sdm_dolfinx: `make demo` runs the membrane comparison, `make test` mypy on the package (`make
+# typecheck`), then the tests on 1 and 2 ranks.
 # Both first install what is missing (Debian packages, .venv); see scripts/setup.sh.
 SHELL := /bin/bash
 PY := .venv/bin/python
@@ -12,7 +13,7 @@ export OMPI_MCA_mpi_yield_when_idle := 1
 MPIRUN := mpirun -n $(NP)
 STAMP := .venv/.installed
 
-.PHONY: setup test test-serial test-mpi demo clean
+.PHONY: setup typecheck test test-serial test-mpi demo clean
 
 $(STAMP): pyproject.toml scripts/setup.sh
 	bash scripts/setup.sh
@@ -21,8 +22,14 @@ $(STAMP): pyproject.toml scripts/setup.sh
 setup: $(STAMP)
 
 test: setup
+	$(MAKE) --no-print-directory typecheck
 	$(MAKE) --no-print-directory test-serial
 	$(MAKE) --no-print-directory test-mpi
+
+# mypy with pyproject.toml's [tool.mypy]: the package with the default rules, the public API
+# strictly (docs/testing.md); scripts/setup.sh installs the pinned mypy
+typecheck: setup
+	$(PY) -m mypy
 
 test-serial: setup
 	$(PY) -m pytest -q tests
@@ -34,7 +41,7 @@ demo: setup
 	$(PY) demos/membrane.py
 
 clean:
-	rm -rf .venv output demos/output *.egg-info
+	rm -rf .venv output demos/output *.egg-info .mypy_cache
 
 # The same suite on dolfinx 0.9: Debian 13 (trixie) in a chroot, built once (~5 min, ~3 GB)
 # under /var/cache/sdm_dolfinx and reused; needs root. See scripts/dolfinx09.sh.

@@ -27,6 +27,13 @@ if ! (cd / && "$ROOT/.venv/bin/python" -c "import sdm_dolfinx") 2>/dev/null; the
   .venv/bin/python -m pip install -q --no-build-isolation --no-deps -e .
 fi
 .venv/bin/python -c "import dolfinx, sdm_dolfinx; print('setup: dolfinx', dolfinx.__version__, '- sdm_dolfinx', sdm_dolfinx.__version__)"
+# mypy for `make typecheck`, which `make test` (CI) runs first: not optional, so a failure to
+# install it fails the set-up. Pinned: a new mypy may find new errors in unchanged code.
+MYPY_VERSION=2.4.1
+if ! .venv/bin/python -m mypy --version 2>/dev/null | grep -q "^mypy $MYPY_VERSION "; then
+  echo "setup: installing mypy $MYPY_VERSION into .venv (make typecheck)"
+  .venv/bin/python -m pip install -q "mypy==$MYPY_VERSION"
+fi
 # Optional extras for pictures and animations (sdm_dolfinx/render.py): pyvista with its VTK wheel
 # (renders off-screen through EGL/OSMesa, no display needed) and imageio. About 25 s and 600 MB
 # once; a quick look-up when present. Numpy stays Debian's (dolfinx is built against it).

@@ -5,6 +5,7 @@ these helpers, so a port to a new dolfinx touches this file alone.
 """
 import ctypes
 from pathlib import Path
+from typing import Any
 
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -20,8 +21,11 @@ NEW_API = DOLFINX_VERSION >= (0, 7)
 if NEW_API:  # pragma: no cover - exercised only on dolfinx >= 0.7
     import basix.ufl
 
+#: a finite element: ufl's (dolfinx 0.5) or basix.ufl's (>= 0.7); neither is annotated
+Element = Any
 
-def element(family, cell, degree, shape=()):
+
+def element(family: str, cell: str, degree: int, shape: tuple[int, ...] = ()) -> Element:
     """A Lagrange-type (or DG, Bubble) element, scalar or with value ``shape``."""
     if NEW_API:  # pragma: no cover
         return basix.ufl.element(family, cell, degree, shape=shape if shape else None)
@@ -34,7 +38,7 @@ def element(family, cell, degree, shape=()):
 BUBBLE_DEGREE = {"interval": 2, "triangle": 3, "tetrahedron": 4}
 
 
-def p1_bubble_element(cell, shape=()):
+def p1_bubble_element(cell: str, shape: tuple[int, ...] = ()) -> Element:
     """P1 enriched with the cell's bubble (the paper's P1+: the cubic bubble of a triangle; on an
     interval the quadratic one, basix's "Bubble" of degree 2, so that P1+ spans P2 there; on a
     tetrahedron the quartic one, the lowest basix has)."""
@@ -288,7 +292,7 @@ def xdmf_file(comm, path, mode="w"):
     return io.XDMFFile(comm, str(path), mode)
 
 
-def package_version():
+def package_version() -> str:
     """sdm_dolfinx's version as installed ("unknown" when run from a source tree without metadata)."""
     import importlib.metadata
     try:
@@ -297,7 +301,7 @@ def package_version():
         return "unknown"
 
 
-def file_sha256(path):
+def file_sha256(path: Any) -> str:
     """The SHA-256 of a file's bytes (a problem file's identity in run.json and checkpoints)."""
     import hashlib
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
@@ -366,7 +370,7 @@ def vtk_mesh(V):
     return plot.create_vtk_mesh(V)
 
 
-_options_used = []      # [PetscOptionsUsed wrapper or None], found on first use
+_options_used: list[Any] = []      # [PetscOptionsUsed wrapper or None], found on first use
 
 
 def petsc_options_used(name):

@@ -8,17 +8,22 @@ each time scheme, contact treatment and friction law declares its own options wi
 a run option needs besides: its CLI group, the choice it belongs to, whether a restart may change
 it, whether it is part of the run's identity). Imports nothing of ours but :mod:`.errors`.
 """
+from __future__ import annotations
+
 import math
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Optional
+from typing import Any, Optional, Union
 
 import numpy as np
 
 from sdm_dolfinx.errors import SdmError
 
+#: what a declared type is: a Python type, or ``"point"``
+ParamType = Union[type, str]
 #: the types a parameter may have; ``point`` is a tuple of floats (its length that of the default)
-PARAM_TYPES = (float, int, str, bool, Path, "point")
+PARAM_TYPES: tuple[ParamType, ...] = (float, int, str, bool, Path, "point")
 
 
 class OptionError(SdmError, ValueError):
@@ -51,22 +56,22 @@ class Param:
         required: None is refused: the value must be given (e.g. Coulomb's ``mu``).
     """
     name: str
-    default: object
+    default: Any
     help: str
     unit: str = "-"
-    type: object = None
+    type: Optional[ParamType] = None
     low: Optional[float] = None
     high: Optional[float] = None
     low_strict: bool = False
-    choices: object = None
+    choices: Union[Iterable[Any], Callable[[], Iterable[Any]], None] = None
     flag: Optional[str] = None
-    metavar: object = None
+    metavar: Union[str, tuple[str, ...], None] = None
     expect: Optional[str] = None
     optional: bool = False
     required: bool = False
 
     @property
-    def kind(self):
+    def kind(self) -> ParamType:
         if self.type is not None:
             return self.type
         if isinstance(self.default, bool):
@@ -76,21 +81,21 @@ class Param:
         return type(self.default) if self.default is not None else float
 
     @property
-    def option(self):
+    def option(self) -> str:
         """The command-line option (and TOML key) without dashes."""
         return self.flag or self.name.replace("_", "-")
 
-    def allowed(self):
+    def allowed(self) -> Optional[tuple[Any, ...]]:
         """The allowed values (a tuple), or None when any value of the type goes."""
         if self.choices is None:
             return None
         return tuple(self.choices() if callable(self.choices) else self.choices)
 
-    def check(self, value, label):
+    def check(self, value: Any, label: str) -> list[str]:
         """Messages for ``value`` out of type, bounds or choices (empty when it is fine)."""
         return [f"{label} {c}" for c in self.complaints(value)]
 
-    def complaints(self, value):
+    def complaints(self, value: Any) -> list[str]:
         """What is wrong with ``value``, as phrases to follow its label ("must be >= 1 (got 0)")."""
         kind, choices = self.kind, self.allowed()
         if value is None:
@@ -124,10 +129,10 @@ class Param:
             return [self._expected(value, f"must be <= {_num(self.high)}{unit} (got {value})")]
         return []
 
-    def _expected(self, value, otherwise):
+    def _expected(self, value: Any, otherwise: str) -> str:
         return f"must be {self.expect} (got {value!r})" if self.expect else otherwise
 
-    def convert(self, value):
+    def convert(self, value: Any) -> Any:
         """``value`` in the declared type (after :meth:`check`)."""
         if value is None:
             return None
@@ -142,7 +147,7 @@ class Param:
             return float(value)
         return value
 
-    def parse(self, text):
+    def parse(self, text: str) -> Any:
         """The value of command-line ``text`` (ValueError, a phrase, when it is not of the type;
         the bounds are :meth:`complaints`')."""
         kind = self.kind
@@ -188,16 +193,16 @@ class RunOption(Param):
     """
     noun: Optional[str] = None
     group: str = ""
-    owner: Optional[tuple] = None
+    owner: Optional[tuple[str, str]] = None
     restart: bool = False
     identity: bool = False
     problem_default: bool = False
-    parse_text: Optional[Callable] = None
-    validate: Optional[Callable] = None
-    toml: Optional[tuple] = None
+    parse_text: Optional[Callable[[str], Any]] = None
+    validate: Optional[Callable[[Any, str], Iterable[str]]] = None
+    toml: Optional[tuple[type, ...]] = None
     toml_expected: Optional[str] = None
 
-    def check(self, value, label):
+    def check(self, value: Any, label: str) -> list[str]:
         if self.validate is not None:
             return list(self.validate(value, label))
         choices = self.allowed()
@@ -205,11 +210,12 @@ class RunOption(Param):
             return [f"unknown {self.noun} {value!r}; choose one of {', '.join(map(str, choices))}"]
         return super().check(value, label)
 
-    def parse(self, text):
+    def parse(self, text: str) -> Any:
         return self.parse_text(text) if self.parse_text is not None else super().parse(text)
 
 
-def check_given(owner, declared, given, label=None):
+def check_given(owner: str, declared: Sequence[Param], given: Mapping[str, Any],
+                label: Optional[Callable[[str], str]] = None) -> list[str]:
     """Messages refusing the options ``given`` (name -> value; None: not given) to ``owner``
     (e.g. ``"scheme hht"``), which declares ``declared`` (Params): a name it does not declare,
     a value its declaration refuses, a required one missing. The one check of every scheme,
@@ -230,7 +236,7 @@ def check_given(owner, declared, given, label=None):
     return errors
 
 
-def values_of(owner, declared, given):
+def values_of(owner: str, declared: Sequence[Param], given: Mapping[str, Any]) -> dict[str, Any]:
     """Every declared option's value: ``given`` (None: the default) after :func:`check_given`
     (OptionError, one line, otherwise)."""
     errors = check_given(owner, declared, given)
@@ -239,12 +245,12 @@ def values_of(owner, declared, given):
     return {p.name: p.default if given.get(p.name) is None else given[p.name] for p in declared}
 
 
-def _finite(v):
+def _finite(v: Any) -> bool:
     try:
         return math.isfinite(float(v)) and abs(float(v)) <= 1e150   # squared in energies: stay finite
     except (TypeError, ValueError):
         return False
 
 
-def _num(x):
+def _num(x: float) -> str:
     return f"{x:g}" if isinstance(x, float) else str(x)

@@ -3,11 +3,12 @@ every key and value checked against the option it stands for; the command line o
 import argparse
 import os
 import stat
+import sys
 from pathlib import Path
 
-try:
-    import tomllib                  # Python >= 3.11
-except ModuleNotFoundError:        # pragma: no cover
+if sys.version_info >= (3, 11):
+    import tomllib
+else:                               # pragma: no cover
     import tomli as tomllib
 
 from sdm_dolfinx.cli.common import UsageError, folder_path, nonnegative_float, positive_float, positive_int

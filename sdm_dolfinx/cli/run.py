@@ -204,7 +204,7 @@ CHECKED_OPTIONS = {**VI_OPTIONS, "snes_max_it": (int, lambda v: v >= 1, "an inte
 
 
 #: the parser whose options an unrecognised argument is compared with (set by :func:`parse`)
-_KNOWN_OPTIONS = []
+_KNOWN_OPTIONS: list[str] = []
 
 
 def _unrecognised(key):

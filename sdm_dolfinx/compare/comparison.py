@@ -17,6 +17,7 @@ import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Optional
 
 from mpi4py import MPI
 
@@ -60,7 +61,7 @@ class Comparison:
     params: dict = field(default_factory=dict)
     reference: str = DEFAULT_REFERENCE
     quick: bool = False
-    runs_dir: Path = None       # the runs' folders (default out/runs)
+    runs_dir: Optional[Path] = None     # the runs' folders (default out/runs)
 
     def __post_init__(self):
         self.out = Path(self.out)

@@ -27,18 +27,49 @@ A treatment is one module with a factory ``make(context, options)``, its options
 declared default, which the treatment applies) come from ``contact_options``; the run options,
 the command line's ``--name`` and every check of a value derive from the declarations.
 """
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Mapping
+from typing import TYPE_CHECKING, Any, Optional, Protocol
+
+import numpy as np
+import numpy.typing as npt
+
 from sdm_dolfinx.contact import nitsche, penalty
-from sdm_dolfinx.contact.context import StepContext
-from sdm_dolfinx.params import OptionError, check_given
+from sdm_dolfinx.contact.context import StepContext as StepContext
+from sdm_dolfinx.params import OptionError, Param, check_given
+
+if TYPE_CHECKING:
+    from petsc4py import PETSc
 
 #: the treatment the Integrator handles itself (the variational inequality)
 EXACT = "exact"
 
+
+class Treatment(Protocol):
+    """What a factory returns (the module docstring): the step solver of K X = b + lam(X) and
+    the contact force lam."""
+    solver: Any
+
+    def energy(self, U: PETSc.Vec) -> float: ...
+
+    def force(self, X: PETSc.Vec, out: PETSc.Vec) -> PETSc.Vec: ...
+
+    def nodal_forces(self, X: PETSc.Vec) -> npt.NDArray[np.float64]: ...
+
+    def describe(self) -> dict[str, Any]: ...
+
+    def destroy(self) -> None: ...
+
+
+#: ``factory(context, options) -> treatment``
+Factory = Callable[[StepContext, dict[str, Any]], Treatment]
+
 #: name -> (factory, declared options)
-_FACTORIES = {}
+_FACTORIES: dict[str, tuple[Factory, tuple[Param, ...]]] = {}
 
 
-def register(name, factory, options=()):
+def register(name: str, factory: Factory, options: Iterable[Param] = ()) -> Factory:
     """Make ``factory(context, options) -> treatment`` the contact treatment ``name`` (``context``: a
     :class:`~.context.StepContext`), whose options are the :class:`~sdm_dolfinx.params.Param`
     declarations ``options`` (``factory`` receives the ones given, without None values)."""
@@ -48,22 +79,22 @@ def register(name, factory, options=()):
     return factory
 
 
-def unregister(name):
+def unregister(name: str) -> None:
     """Remove the contact treatment ``name`` (registered by user code; a test's clean-up)."""
     _FACTORIES.pop(name, None)
 
 
-def names():
+def names() -> tuple[str, ...]:
     """The contact treatments a run may name: ``"exact"`` first, then the registered ones."""
     return (EXACT, *_FACTORIES)
 
 
-def options_of(name):
+def options_of(name: str) -> tuple[Param, ...]:
     """The options the treatment ``name`` declares (``"exact"``: none)."""
     return () if name == EXACT else _FACTORIES[name][1]
 
 
-def check(name, options=None):
+def check(name: str, options: Optional[Mapping[str, Any]] = None) -> list[str]:
     """The one-line messages refusing ``name`` with ``options`` (empty when fine): an unknown
     treatment, an option it does not declare, a value its declaration refuses."""
     if name not in names():
@@ -71,7 +102,7 @@ def check(name, options=None):
     return check_given(f"contact {name}", options_of(name), dict(options or {}))
 
 
-def make(name, context, options=None):
+def make(name: str, context: StepContext, options: Optional[Mapping[str, Any]] = None) -> Treatment:
     """The treatment ``name`` for the step of ``context`` (a :class:`~.context.StepContext`: K,
     discretisation, dt, block, factor_matrix); ``options`` a dict of its declared options (None
     values: the defaults).

@@ -4,10 +4,15 @@ A treatment sees the step's matrix and the discretisation, never the Integrator:
 reach the scheme, the step solver of another treatment or the run's state, and a new
 treatment (gap rows, obstacles, two bodies) can tell from this one record what it may rely on.
 """
+from __future__ import annotations
+
 from dataclasses import dataclass
-from typing import Any, Optional
+from typing import TYPE_CHECKING, Optional
 
 from petsc4py import PETSc
+
+if TYPE_CHECKING:
+    from sdm_dolfinx.method.discretisation import Discretisation
 
 
 @dataclass(frozen=True)
@@ -30,7 +35,7 @@ class StepContext:
     """
 
     K: PETSc.Mat
-    discretisation: Any
+    discretisation: Discretisation
     dt: float
     block: bool = False
     factor_matrix: Optional[PETSc.Mat] = None

@@ -46,7 +46,7 @@ from sdm_dolfinx.params import OptionError, Param, check_given
 
 #: each friction law (the values of the run option ``friction``) and the options it declares
 #: (``friction_options``)
-LAW_OPTIONS = {
+LAW_OPTIONS: dict[str, tuple[Param, ...]] = {
     "none": (),
     "tresca": (Param("tresca_threshold", None, "Tresca's threshold, a stress in the problem's units", type=float,
                      low=0.0, expect="a number >= 0", metavar="S", required=True),),
@@ -57,7 +57,7 @@ LAW_OPTIONS = {
 LAWS = tuple(LAW_OPTIONS)
 
 
-def options_of(law):
+def options_of(law: Optional[str]) -> tuple[Param, ...]:
     """The options the friction law ``law`` declares (None: ``"none"``)."""
     return LAW_OPTIONS[law or "none"]
 
@@ -97,7 +97,7 @@ def check(friction, mu, threshold):
 SOLVERS, LINEAR = ("ssn",), ("auto", "schur")
 
 
-def check_solver(friction, vi_solver, linear):
+def check_solver(friction: Optional[str], vi_solver: Optional[str], linear: Optional[str]) -> list[str]:
     """Messages (a list) when the run options ask friction for a step solver it has not."""
     if (friction or "none") == "none" or (vi_solver in SOLVERS and linear in LINEAR):
         return []

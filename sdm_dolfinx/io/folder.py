@@ -9,6 +9,7 @@ import socket
 import tempfile
 import time
 from pathlib import Path
+from typing import Any, Optional, Union
 
 from mpi4py import MPI
 
@@ -34,7 +35,7 @@ class FolderInUseError(RunFolderError, CheckpointError):
     that error (exit status 2) applies to it."""
 
 
-def read_info(folder, comm=MPI.COMM_WORLD):
+def read_info(folder: Union[str, Path], comm: MPI.Comm = MPI.COMM_WORLD) -> dict[str, Any]:
     """``folder/run.json`` as a dict on every rank; RunFolderError when missing or unreadable."""
     def read():
         path = Path(folder) / "run.json"
@@ -50,7 +51,7 @@ def read_info(folder, comm=MPI.COMM_WORLD):
     return on_rank0(comm, read, wrap=RunFolderError)
 
 
-def check_out(out, overwrite, comm=MPI.COMM_WORLD):
+def check_out(out: Path, overwrite: bool, comm: MPI.Comm = MPI.COMM_WORLD) -> Optional[str]:
     """The output folder must be writable and must not hold a run (unless ``overwrite``).
 
     Returns:

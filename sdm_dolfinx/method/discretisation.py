@@ -189,7 +189,7 @@ class Discretisation:
         z = self.solve_C(bx)
         self.B.multTranspose(z, y)
 
-    def physical_velocity(self, Vbar, out):
+    def physical_velocity(self, Vbar: PETSc.Vec, out: PETSc.Vec) -> PETSc.Vec:
         """out = C^-1 B Vbar, the velocity in H^h of the M formulation (C diagonal: exact for P0,
         lumped for P1, as M = B^T C^-1 B is built); returns ``out`` (a vector of H^h)."""
         self.B.mult(Vbar, out)

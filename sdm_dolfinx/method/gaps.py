@@ -4,25 +4,33 @@ dof of the constrained boundary (collective), from the Discretisation alone.
 The Integrator, the time series and the observers' :class:`~sdm_dolfinx.run.observe.State` all
 measure it here. ``u`` is the owned part of a W^h vector as an array (``U.array_r``).
 """
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
 from mpi4py import MPI
 
 import numpy as np
+import numpy.typing as npt
+
+if TYPE_CHECKING:
+    from sdm_dolfinx.method.discretisation import Discretisation
 
 
-def vertex_gap(discretisation, u):
+def vertex_gap(discretisation: Discretisation, u: npt.NDArray[np.float64]) -> float:
     """min over the constrained vertices of u_c - bound, reduced over the ranks (+inf without any)."""
     d = discretisation
     return d.comm.allreduce(float(np.min(u[d.cdofs] - d.lb, initial=np.inf)), op=MPI.MIN)
 
 
-def boundary_gap(discretisation, u):
+def boundary_gap(discretisation: Discretisation, u: npt.NDArray[np.float64]) -> float:
     """min over every dof of W^h on the constrained boundary (P2 mid-edge nodes included) of
     u_c - bound, reduced over the ranks (+inf without such dofs)."""
     d = discretisation
     return d.comm.allreduce(float(np.min(u[d.bdofs] - d.blb, initial=np.inf)), op=MPI.MIN)
 
 
-def boundary_gap_where(discretisation, u):
+def boundary_gap_where(discretisation: Discretisation, u: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
     """The coordinates (gdim,) of the dof where :func:`boundary_gap` is reached (collective)."""
     d = discretisation
     gap = u[d.bdofs] - d.blb

@@ -2,7 +2,10 @@
 
 A pair is pure data; :mod:`sdm_dolfinx.discretisation` turns it into matrices.
 """
+from __future__ import annotations
+
 from dataclasses import dataclass
+from typing import Optional
 
 from sdm_dolfinx import compat
 from sdm_dolfinx.method.errors import DiscretisationError
@@ -36,12 +39,12 @@ class Pair:
             P1+/P1 0.12-0.19 and 0.202 / 0.192.
     """
     name: str
-    w: tuple
-    h: tuple
+    w: tuple[str, int]
+    h: Optional[tuple[str, int]]
     well_posed: str
-    cells: tuple = SIMPLEX_CELLS
+    cells: tuple[str, ...] = SIMPLEX_CELLS
 
-    def check_cell(self, cell):
+    def check_cell(self, cell: str) -> None:
         """DiscretisationError (one line, the pairs available on ``cell``) if this pair has no element there."""
         if cell not in self.cells:
             there = [p.name for p in PAIRS.values() if cell in p.cells]
@@ -50,7 +53,7 @@ class Pair:
                 + (f"the pairs available on {cell} meshes: {', '.join(there)}" if there
                    else "no pair is: the method needs intervals, triangles or tetrahedra"))
 
-    def w_element(self, cell, shape=()):
+    def w_element(self, cell: str, shape: tuple[int, ...] = ()) -> compat.Element:
         """The element of W^h (displacement) on ``cell`` with value shape ``shape``."""
         self.check_cell(cell)
         family, degree = self.w
@@ -58,7 +61,7 @@ class Pair:
             return compat.p1_bubble_element(cell, shape)
         return compat.element("Lagrange", cell, degree, shape)
 
-    def h_element(self, cell, shape=()):
+    def h_element(self, cell: str, shape: tuple[int, ...] = ()) -> Optional[compat.Element]:
         """The element of H^h (velocity) on ``cell``, or None for the standard method (H^h = W^h)."""
         if self.h is None:
             return None
@@ -67,30 +70,30 @@ class Pair:
         return compat.element("DG" if degree == 0 else "Lagrange", cell, degree, shape)
 
     @property
-    def standard(self):
+    def standard(self) -> bool:
         """True when H^h = W^h: the standard (consistent mass) Galerkin method."""
         return self.h is None
 
-    def default_mass(self):
+    def default_mass(self) -> str:
         """The C treatment used unless asked otherwise: exact diagonal (P0), lumped (P1); the
         consistent mass of W^h for a standard pair."""
-        if self.standard:
+        if self.h is None:          # standard
             return "standard"
         return "diagonal" if self.h[1] == 0 else "lumped"
 
-    def allowed_masses(self):
+    def allowed_masses(self) -> tuple[str, ...]:
         """The C treatments (SDM pairs) or masses (standard pairs) this pair accepts (see
         :data:`MASS_TREATMENTS`): a standard pair's consistent mass, its row-sum lumped mass
         (refused at assembly where row sums vanish: P2 on triangles and tetrahedra) and the
         redistributed mass (:mod:`sdm_dolfinx.method.masses`)."""
-        if self.standard:
+        if self.h is None:          # standard
             return ("standard", "row-sum", "redistributed")
         if self.h[1] == 0:
             return ("diagonal",)
         return ("lumped", "consistent")
 
 
-PAIRS = {p.name: p for p in [
+PAIRS: dict[str, Pair] = {p.name: p for p in [
     Pair("P1+/P0", ("P+", 1), ("P", 0), "proved (Lemma 2, 2-D; observed on tetrahedra)",
          cells=("interval", "triangle", "tetrahedron")),
     Pair("P1/P0", ("P", 1), ("P", 0), "no: dim H >= dim W - N_g"),
@@ -102,7 +105,7 @@ PAIRS = {p.name: p for p in [
 ]}
 
 
-def register(pair):
+def register(pair: Pair) -> Pair:
     """Add a :class:`Pair` to :data:`PAIRS` (so that ``--pair`` and ``simulate(pair=name)`` know
     it); a pair of one's own can also be given to ``simulate`` as the object itself."""
     if not isinstance(pair, Pair):
@@ -113,7 +116,7 @@ def register(pair):
     return pair
 
 
-def get_pair(name):
+def get_pair(name: str) -> Pair:
     """The registered pair called ``name``; ValueError listing the choices otherwise."""
     try:
         return PAIRS[name]

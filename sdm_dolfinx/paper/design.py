@@ -10,6 +10,7 @@ import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Optional
 
 from sdm_dolfinx.study.run_spec import PAPER_MESHES, PAPER_TABLE2, Run, config_text  # noqa: F401 (re-exported)
 from sdm_dolfinx.problems.disc_mesh import LEVELS
@@ -131,11 +132,11 @@ class Study:
     fig9: dict = field(default_factory=dict)        # N -> Run
     fig10: dict = field(default_factory=dict)       # pair -> {N: Run}
     fig11: dict = field(default_factory=dict)       # pair -> {N: {ratio: Run}}
-    fig1: Run = None
+    fig1: Optional[Run] = None
     disc: dict = field(default_factory=dict)        # pair -> {dt: Run} (level 1)
     conv: dict = field(default_factory=dict)        # level -> Run (gmsh meshes; the finest is the reference)
     conv_getfem: dict = field(default_factory=dict)  # Table 2 row -> Run on the paper's own mesh (rows 1-4)
-    getfem_mesh_dir: Path = None                     # where the paper's meshes were found (None: not found)
+    getfem_mesh_dir: Optional[Path] = None           # where the paper's meshes were found (None: not found)
     conv_levels_shown: tuple = ()
 
     def runs(self):

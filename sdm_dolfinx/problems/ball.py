@@ -44,6 +44,7 @@ vibration period is not negligible against t_c) is measured by sdm_dolfinx.valid
 defaults about +3 % on F_max and -2 % on t_c and delta_max against the same mesh at v = 1 mm/s.
 """
 import math
+from typing import Any
 
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -55,7 +56,7 @@ from dolfinx import fem, mesh as dmesh
 from sdm_dolfinx import compat
 from sdm_dolfinx.problems import base as _problem
 from sdm_dolfinx.problems import ball_mesh
-from sdm_dolfinx.problems.base import Param, ProblemSpec
+from sdm_dolfinx.problems.base import Param, Problem, ProblemSpec
 
 #: the unit of every parameter and time-series column (for run.json; --help states them too)
 UNITS = {"level": "-", "h": "mm (gmsh mesh size far from the contact)",
@@ -250,7 +251,7 @@ SPEC = ProblemSpec(
     defaults={"pair": "P2/P1", "scheme": "midpoint", "dt": 4e-5, "T": 5e-3, "time_unit": "s"})
 
 
-def problem(comm=MPI.COMM_WORLD, **values):
+def problem(comm: MPI.Comm = MPI.COMM_WORLD, **values: Any) -> Problem:
     """The falling ball; ``values`` are :data:`PARAMS` (``level``, ``h``, ``h_contact``, ``radius``,
     ``height``, ``E``, ``nu``, ``rho``, ``v``, ``vt``, ``vt_angle``, ``gravity``, ``with_contact``), the others at
     their defaults."""

@@ -44,6 +44,8 @@ rod's), T = t0 + 1.5 x 2L/c = 3.2 (the release at 2.2 and a flight after it).
 The plane bar of ``demos/bar_problem.py`` (Poisson's ratio 0, so exactly this 1-D motion
 along x) has the same closed form: :class:`PlaneBarExact`.
 """
+from typing import Any
+
 from mpi4py import MPI
 from petsc4py import PETSc
 
@@ -52,7 +54,7 @@ import ufl
 from dolfinx import fem, mesh as dmesh
 
 from sdm_dolfinx.problems import base as _problem
-from sdm_dolfinx.problems.base import Param, ProblemSpec
+from sdm_dolfinx.problems.base import Param, Problem, ProblemSpec
 from sdm_dolfinx.problems.exact import ExactSolution, coordinate
 
 
@@ -225,6 +227,6 @@ SPEC = ProblemSpec(
 )
 
 
-def problem(comm=MPI.COMM_WORLD, **values):
+def problem(comm: MPI.Comm = MPI.COMM_WORLD, **values: Any) -> Problem:
     """The bar; ``values`` are :data:`PARAMS` (``L``, ``E``, ``rho``, ``v``, ``gap``, ``NX``)."""
     return SPEC.problem(comm, **values)

@@ -11,17 +11,33 @@ a ``build(comm, **values)`` function. The command line's options, the TOML keys,
 and the rebuilding of a finished run for post-processing all come from that declaration, for
 the built-in problems and a user's problem file alike.
 """
+from __future__ import annotations
+
 import traceback
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Optional
+from typing import TYPE_CHECKING, Any, Optional, Union
 
 from mpi4py import MPI
 
 import numpy as np
+import numpy.typing as npt
 
 from sdm_dolfinx.errors import SdmError
-from sdm_dolfinx.params import PARAM_TYPES, Param  # noqa: F401  (declared once for problems and runs)
+from sdm_dolfinx.params import PARAM_TYPES as PARAM_TYPES  # noqa: F401  (declared once for problems and runs)
+from sdm_dolfinx.params import Param as Param
+
+if TYPE_CHECKING:
+    from dolfinx.fem import Constant
+    from dolfinx.mesh import Mesh
+
+#: a UFL expression or form (ufl has no annotations)
+UFL = Any
+#: ``x -> values`` at the points x of shape (3, n), as ``Function.interpolate`` takes it
+PointFunction = Callable[[npt.NDArray[np.float64]], npt.ArrayLike]
+#: ``mesh -> local entity (vertex or facet) indices``
+MeshEntities = Callable[["Mesh"], npt.ArrayLike]
 
 
 #: the time-series columns a Problem may add (``extra_columns``): sum of the normal multipliers,
@@ -83,34 +99,34 @@ class Problem:
     made of the mesh facets whose vertices are all constrained.
     """
     name: str
-    mesh: object
-    shape: tuple
-    a: Callable
-    l: Callable
-    u0: Callable
-    v0: Callable
-    constraint_vertices: Callable
-    lower_bound: Callable
-    constraint_measure: Callable
+    mesh: Mesh
+    shape: tuple[int, ...]
+    a: Callable[[UFL, UFL], UFL]
+    l: Callable[[UFL], UFL]
+    u0: PointFunction
+    v0: PointFunction
+    constraint_vertices: MeshEntities
+    lower_bound: PointFunction
+    constraint_measure: Callable[[UFL], UFL]
     rho: float = 1.0
     constraint_component: Optional[int] = None
-    dirichlet_facets: Optional[Callable] = None
-    dirichlet_value: Optional[Callable] = None
-    probe: tuple = (0.0, 0.0)
-    extra_columns: tuple = ()
-    parameters: dict = field(default_factory=dict)
-    units: dict = field(default_factory=dict)
+    dirichlet_facets: Optional[MeshEntities] = None
+    dirichlet_value: Optional[PointFunction] = None
+    probe: Sequence[float] = (0.0, 0.0)
+    extra_columns: tuple[str, ...] = ()
+    parameters: dict[str, Any] = field(default_factory=dict)
+    units: dict[str, str] = field(default_factory=dict)
     momentum_component: int = 1
-    args: dict = field(default_factory=dict)
+    args: dict[str, Any] = field(default_factory=dict)
     source: Optional[str] = None
     source_sha256: Optional[str] = None
-    time: Optional[object] = None
-    stress: Optional[Callable] = None
+    time: Optional[Constant] = None
+    stress: Optional[Callable[[UFL], UFL]] = None
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         self.validate()
 
-    def validate(self):
+    def validate(self) -> None:
         """Refuse, in one line naming the problem, what downstream would otherwise guess.
 
         Raises:
@@ -138,14 +154,14 @@ class Problem:
         if self.stress is not None and not callable(self.stress):
             raise ProblemInputError(f"problem {self.name!r}: stress must be a callable u -> sigma(u) (UFL), or None "
                                     f"(got {type(self.stress).__name__})")
-        if self.time is not None and np.shape(getattr(self.time, "value", None)) != ():
+        if self.time is not None and (not hasattr(self.time, "value") or np.shape(self.time.value) != ()):
             raise ProblemInputError(f"problem {self.name!r}: time must be a scalar fem.Constant used by l(w) "
                                     f"(got {type(self.time).__name__})")
 
-    def describe(self):
+    def describe(self) -> dict[str, Any]:
         """Parameters with their units, as written to ``run.json`` (``args`` and ``source``
         are what :func:`sdm_dolfinx.problems.rebuild` needs)."""
-        d = {"name": self.name, "parameters": dict(self.parameters), "units": dict(self.units),
+        d: dict[str, Any] = {"name": self.name, "parameters": dict(self.parameters), "units": dict(self.units),
              "probe": [float(c) for c in np.asarray(self.probe)]}
         if self.args:
             d["args"] = dict(self.args)
@@ -161,13 +177,13 @@ class ProblemInputError(SdmError, ValueError):
     """Parameter values a problem refuses (the message may join several, with '; ')."""
 
 
-def one_line(e):
+def one_line(e: BaseException) -> str:
     """``Type: message`` of an exception on one line (its first non-empty line)."""
     text = next((ln.strip() for ln in str(e).splitlines() if ln.strip()), "")
     return f"{type(e).__name__}: {text}" if text else type(e).__name__
 
 
-def user_line(e, path):
+def user_line(e: BaseException, path: Union[str, Path]) -> str:
     """``, line N`` of the innermost frame of ``e``'s traceback in the file ``path`` ('' if none)."""
     frames = [f for f in traceback.extract_tb(e.__traceback__) if Path(f.filename).resolve() == Path(path)]
     if isinstance(e, SyntaxError) and e.lineno and Path(e.filename or "").resolve() == Path(path):
@@ -203,23 +219,23 @@ class ProblemSpec:
             ``energy``, ``contact_point`` (:class:`sdm_dolfinx.problems.exact.ExactSolution`).
     """
     name: str
-    build: Callable
-    params: tuple
+    build: Callable[..., Problem]
+    params: Sequence[Param]
     doc: str = ""
-    defaults: dict = field(default_factory=dict)
-    check: Optional[Callable] = None
-    estimate: Optional[Callable] = None
+    defaults: dict[str, Any] = field(default_factory=dict)
+    check: Optional[Callable[[dict[str, Any], Callable[[str], str]], Iterable[str]]] = None
+    estimate: Optional[Callable[[dict[str, Any]], dict[str, Any]]] = None
     source: Optional[str] = None
     source_sha256: Optional[str] = None
-    exact: Optional[Callable] = None
+    exact: Optional[Callable[[Problem], Any]] = None
 
-    def param(self, name):
+    def param(self, name: str) -> Param:
         for p in self.params:
             if p.name == name:
                 return p
         raise KeyError(name)
 
-    def values(self, given=None, cli=False):
+    def values(self, given: Optional[Mapping[str, Any]] = None, cli: bool = False) -> dict[str, Any]:
         """Every declared parameter's value: the defaults, overridden by ``given``.
 
         Raises:
@@ -232,7 +248,8 @@ class ProblemSpec:
         if unknown:
             raise ProblemInputError(f"{self.name} has no parameter {', '.join(map(repr, unknown))}; "
                                     f"its parameters: {', '.join(names)}")
-        errors, values = [], {}
+        errors: list[str] = []
+        values: dict[str, Any] = {}
         for p in self.params:
             v = given.get(p.name, p.default)
             msgs = p.check(v, self.label(p.name, cli))
@@ -244,11 +261,11 @@ class ProblemSpec:
             raise ProblemInputError("; ".join(errors))
         return values
 
-    def label(self, name, cli=False):
+    def label(self, name: str, cli: bool = False) -> str:
         """How a parameter is named in messages: ``--option`` on the command line, else its name."""
         return f"--{self.param(name).option}" if cli else name
 
-    def problem(self, comm=MPI.COMM_WORLD, **given):
+    def problem(self, comm: MPI.Comm = MPI.COMM_WORLD, **given: Any) -> Problem:
         """The Problem for these parameter values (the others at their defaults)."""
         values = self.values(given)
         if self.source is None:
@@ -267,10 +284,10 @@ class ProblemSpec:
         prob.source, prob.source_sha256 = self.source, self.source_sha256
         return prob
 
-    def units(self):
+    def units(self) -> dict[str, str]:
         return {p.name: p.unit for p in self.params}
 
     @property
-    def summary(self):
+    def summary(self) -> str:
         """The first line of ``doc``."""
         return (self.doc or self.name).strip().splitlines()[0]

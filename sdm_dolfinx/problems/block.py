@@ -22,6 +22,8 @@ steps of dt = 1e-4 s, which resolves the block's slowest vibrations on the found
 its closed form: with nu >= 0.1 the Poisson effect couples slip and normal motion and a vertical
 vibration grows (block.NU_NOTE).
 """
+from typing import Any
+
 from mpi4py import MPI
 from petsc4py import PETSc
 
@@ -31,7 +33,7 @@ from dolfinx import fem, mesh as dmesh
 
 from sdm_dolfinx import compat
 from sdm_dolfinx.problems import base as _problem
-from sdm_dolfinx.problems.base import Param, ProblemSpec
+from sdm_dolfinx.problems.base import Param, Problem, ProblemSpec
 
 #: how the block starts: at its static equilibrium under gravity, or unstressed at rest on y = 0
 STARTS = ("equilibrium", "rest")
@@ -300,7 +302,7 @@ SPEC = ProblemSpec(
 )
 
 
-def problem(comm=MPI.COMM_WORLD, **values):
+def problem(comm: MPI.Comm = MPI.COMM_WORLD, **values: Any) -> Problem:
     """The sliding block; ``values`` are :data:`PARAMS` (``width``, ``height``, ``nx``, ``ny``,
     ``E``, ``nu``, ``rho``, ``gravity``, ``v0``, ``start``), the others at their defaults."""
     return SPEC.problem(comm, **values)

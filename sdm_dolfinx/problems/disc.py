@@ -22,6 +22,7 @@ mu < tan(THETA)/3, its centre at g (sin THETA - mu cos THETA), spinning up at
 initial velocity (an oblique impact).
 """
 from pathlib import Path
+from typing import Any
 
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -33,7 +34,7 @@ from dolfinx import fem, mesh as dmesh
 from sdm_dolfinx import compat
 
 from sdm_dolfinx.problems import base as _problem
-from sdm_dolfinx.problems.base import Param, ProblemSpec
+from sdm_dolfinx.problems.base import Param, Problem, ProblemSpec
 from sdm_dolfinx.problems.block import StaticStart
 from sdm_dolfinx.problems.signorini import resting_solution
 from sdm_dolfinx.problems import disc_mesh
@@ -313,7 +314,7 @@ SPEC = ProblemSpec(
 )
 
 
-def problem(comm=MPI.COMM_WORLD, **values):
+def problem(comm: MPI.Comm = MPI.COMM_WORLD, **values: Any) -> Problem:
     """The paper's falling disc; ``values`` are :data:`PARAMS` (``level``, ``h``, ``mesh_file``,
     ``radius``, ``height``, ``rho``, ``lame_lambda``, ``lame_mu``, ``gravity``, ``gravity_angle``,
     ``v0``, ``vx0``, ``contact_zone``, ``with_contact``, ``start``), the others at their defaults."""

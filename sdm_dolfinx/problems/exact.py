@@ -11,6 +11,8 @@ The built-in ones: the 1-D rod of GetFEM's demo (:mod:`.rod1d`), Doyen-Ern-Piper
 (:mod:`.bar`) and, through the same formula, the plane bar of ``demos/bar_problem.py``
 (:class:`~sdm_dolfinx.problems.bar.PlaneBarExact`).
 """
+from typing import Optional
+
 import numpy as np
 
 
@@ -32,8 +34,8 @@ class ExactSolution:
     contact_point = np.zeros(3)
     horizon = 0.0
     energy = 0.0
-    period = None
-    value_shape = ()
+    period: Optional[float] = None
+    value_shape: tuple[int, ...] = ()
 
     def displacement(self, x, t):
         """u(x, t) at the points ``x`` (3, n): (n,) or (gdim, n)."""

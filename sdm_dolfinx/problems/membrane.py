@@ -3,6 +3,8 @@
 Omega = (0, 1)^2, u'' - Laplace(u) = f in Omega, u >= 0 (the obstacle), u = 0.02 on the
 boundary, u(0) = 0.02, u'(0) = 0, f = -0.6; structured N x N mesh (h = 1/N).
 """
+from typing import Any
+
 from mpi4py import MPI
 
 import numpy as np
@@ -10,7 +12,7 @@ import ufl
 from dolfinx import mesh as dmesh
 
 from sdm_dolfinx.problems import base as _problem
-from sdm_dolfinx.problems.base import Param, ProblemSpec
+from sdm_dolfinx.problems.base import Param, Problem, ProblemSpec
 
 DIAGONALS = {"right": dmesh.DiagonalType.right, "left": dmesh.DiagonalType.left,
              "left_right": dmesh.DiagonalType.left_right, "right_left": dmesh.DiagonalType.right_left,
@@ -99,7 +101,7 @@ SPEC = ProblemSpec(
 )
 
 
-def problem(comm=MPI.COMM_WORLD, **values):
+def problem(comm: MPI.Comm = MPI.COMM_WORLD, **values: Any) -> Problem:
     """The paper's membrane problem; ``values`` are :data:`PARAMS` (``N``, ``f``, ``u0``, ``g``,
     ``obstacle``, ``diagonal``, ``probe``, ``with_obstacle``), the others at their defaults."""
     return SPEC.problem(comm, **values)

@@ -6,23 +6,27 @@ then has every command the built-in problems have (``python -m sdm_dolfinx run
 --problem-file FILE``). A run records the file's path in ``run.json`` so that ``--restart``,
 ``energy`` and the pictures find the declaration again.
 """
+from __future__ import annotations
+
 import importlib.util
 import inspect
 import sys
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any, Union
 
 from mpi4py import MPI
 
 from sdm_dolfinx import compat
-from sdm_dolfinx.problems.base import ProblemInputError, ProblemSpec, one_line, user_line
+from sdm_dolfinx.problems.base import Problem, ProblemInputError, ProblemSpec, one_line, user_line
 
-_REGISTRY = {}
+_REGISTRY: dict[str, ProblemSpec] = {}
 #: the keys a ProblemSpec's ``defaults`` may hold: the run options a problem may default (those
 #: declared ``problem_default`` in :mod:`sdm_dolfinx.run.options`), and the unit of dt and T
 DEFAULT_KEYS = ("pair", "scheme", "dt", "T", "time_unit")
 
 
-def register(spec):
+def register(spec: ProblemSpec) -> ProblemSpec:
     """Add ``spec`` to the registry (a file's problem may replace one from the same file)."""
     if not isinstance(spec, ProblemSpec):
         raise TypeError(f"register() takes a ProblemSpec, got {type(spec).__name__}")
@@ -40,7 +44,7 @@ def register(spec):
     return spec
 
 
-def _check_build_signature(spec):
+def _check_build_signature(spec: ProblemSpec) -> None:
     """``build(comm, **values)`` must take exactly the declared parameters (a misspelt Param
     would otherwise surface only when the problem is built)."""
     try:
@@ -60,12 +64,12 @@ def _check_build_signature(spec):
             + (f"; taken but not declared: {', '.join(extra)}" if extra else ""))
 
 
-def names(builtin=False):
+def names(builtin: bool = False) -> list[str]:
     """The registered problems' names (built-in ones first; ``builtin``: only those)."""
     return [n for n, s in _REGISTRY.items() if not (builtin and s.source)]
 
 
-def get(name):
+def get(name: str) -> ProblemSpec:
     """The registered problem ``name``; ProblemInputError listing the choices otherwise."""
     try:
         return _REGISTRY[name]
@@ -74,7 +78,7 @@ def get(name):
                                 f"(a problem of your own: --problem-file FILE)") from None
 
 
-def load_file(path):
+def load_file(path: Union[str, Path]) -> ProblemSpec:
     """Import the problem file ``path`` and register its ``PROBLEM``; returns the spec.
 
     Raises:
@@ -92,6 +96,8 @@ def load_file(path):
         raise ProblemInputError(f"problem file {path}: not a Python file (.py)")
     modname = f"sdm_dolfinx_problem_file_{len(_REGISTRY)}_{path.stem}"
     mod_spec = importlib.util.spec_from_file_location(modname, path)
+    if mod_spec is None or mod_spec.loader is None:     # not for a .py file: importlib's own refusal
+        raise ProblemInputError(f"problem file {path}: Python cannot import it")
     module = importlib.util.module_from_spec(mod_spec)
     sys.modules[modname] = module
     try:
@@ -99,15 +105,15 @@ def load_file(path):
     except Exception as e:          # the user's code: any error is reported in one line
         sys.modules.pop(modname, None)
         raise ProblemInputError(f"problem file {path}{user_line(e, path)}: {one_line(e)}") from None
-    spec = getattr(module, "PROBLEM", None)
-    if not isinstance(spec, ProblemSpec):
+    declared = getattr(module, "PROBLEM", None)
+    if not isinstance(declared, ProblemSpec):
         raise ProblemInputError(f"problem file {path}: defines no PROBLEM = ProblemSpec(...) "
                                 f"(see docs/add_a_problem.md)")
-    spec.source, spec.source_sha256 = source, compat.file_sha256(path)
-    return register(spec)
+    declared.source, declared.source_sha256 = source, compat.file_sha256(path)
+    return register(declared)
 
 
-def resolve(problem):
+def resolve(problem: Union[ProblemSpec, str, Path]) -> ProblemSpec:
     """A ProblemSpec from a spec, a registered name or the path of a problem file (``.py``)."""
     if isinstance(problem, ProblemSpec):
         return problem
@@ -116,7 +122,7 @@ def resolve(problem):
     return get(str(problem))
 
 
-def spec_of_run(described):
+def spec_of_run(described: Mapping[str, Any]) -> ProblemSpec:
     """The spec that built a run, from its ``run.json`` ``problem`` entry (name, source)."""
     source = described.get("source")
     if source:
@@ -124,7 +130,7 @@ def spec_of_run(described):
     return get(described["name"])
 
 
-def rebuild(described, comm=MPI.COMM_WORLD):
+def rebuild(described: Mapping[str, Any], comm: MPI.Comm = MPI.COMM_WORLD) -> Problem:
     """The Problem of a finished run, from its ``run.json`` ``problem`` entry.
 
     Raises:

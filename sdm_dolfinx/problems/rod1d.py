@@ -40,6 +40,8 @@ front: u_t(0, 0) = -1/2, as at every t > 0).
 
 Defaults as GetFEM's demo: NX = 20, dt = 2e-3, T = 12 (four periods).
 """
+from typing import Any
+
 from mpi4py import MPI
 from petsc4py import PETSc
 
@@ -48,7 +50,7 @@ import ufl
 from dolfinx import fem, mesh as dmesh
 
 from sdm_dolfinx.problems import base as _problem
-from sdm_dolfinx.problems.base import Param, ProblemSpec
+from sdm_dolfinx.problems.base import Param, Problem, ProblemSpec
 from sdm_dolfinx.problems.exact import ExactSolution, coordinate
 
 #: the period of the motion and the contact phase within it: [1, 2) + 3k
@@ -184,6 +186,6 @@ SPEC = ProblemSpec(
 )
 
 
-def problem(comm=MPI.COMM_WORLD, **values):
+def problem(comm: MPI.Comm = MPI.COMM_WORLD, **values: Any) -> Problem:
     """The rod; ``values`` are :data:`PARAMS` (``NX``)."""
     return SPEC.problem(comm, **values)

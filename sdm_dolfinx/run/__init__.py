@@ -10,3 +10,6 @@ from sdm_dolfinx.run.result import BASE_COLUMNS, Result, TimeSeries, num_steps  
 from sdm_dolfinx.run.observe import ObserveError, State  # noqa: F401
 from sdm_dolfinx.run.signals import Interrupted  # noqa: F401
 from sdm_dolfinx.run.simulate import launch, simulate  # noqa: F401
+
+__all__ = ["simulate", "plan", "RunPlan", "Result", "TimeSeries", "State", "BASE_COLUMNS", "num_steps", "grouped",
+           "launch", "RunInputError", "SolverSetupError", "ObserveError", "Interrupted"]

@@ -5,9 +5,13 @@ beside it: the integrator (one step), :class:`~sdm_dolfinx.run.result.TimeSeries
 :class:`~sdm_dolfinx.io.run_files.RunFiles` (the folder), :mod:`.restart` (checkpoints) and
 :mod:`.signals` (stopping cleanly).
 """
+from __future__ import annotations
+
 import time
 import uuid
+from collections.abc import Callable, Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, Optional, Union
 
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -30,18 +34,24 @@ from sdm_dolfinx.io.folder import FolderLock, RunFolderError, read_info, same_ru
 from sdm_dolfinx.run.probes import ConstraintProbe, PointProbe
 from sdm_dolfinx.io.run_files import RunFileError, RunFiles
 from sdm_dolfinx.run.observe import Observer
-from sdm_dolfinx.run.result import Result, TimeSeries, num_steps
+from sdm_dolfinx.run.result import OnStep, Result, TimeSeries, num_steps
 from sdm_dolfinx.run.signals import Interrupted, StopFlag
 from sdm_dolfinx.run.solver_state import SolverHistory
+
+if TYPE_CHECKING:
+    from sdm_dolfinx.problems import Problem
 
 
 class SolverSetupError(SdmError, RuntimeError):
     """The step solver could not be set up (nothing was written)."""
 
 
-def execute(problem, options, *, out=None, restart=False, progress=False, petsc_options=None, extra_info=None,
-            handle_signals=False, on_step=None, observe=None, constraint_tol=1e-8, folder_seen=None,
-            changed_source=None):
+def execute(problem: Problem, options: Mapping[str, Any], *, out: Union[str, Path, None] = None,
+            restart: bool = False, progress: bool = False, petsc_options: Optional[Mapping[str, Any]] = None,
+            extra_info: Optional[Mapping[str, Any]] = None, handle_signals: bool = False,
+            on_step: Optional[OnStep] = None, observe: Optional[Callable[..., object]] = None,
+            constraint_tol: float = 1e-8, folder_seen: Optional[Mapping[str, Any]] = None,
+            changed_source: Optional[list[str]] = None) -> Result:
     """Run ``problem`` with the checked, complete flat run ``options``
     (:func:`sdm_dolfinx.run.options.complete`) from t = 0 to T: the body of
     :func:`sdm_dolfinx.run.simulate`, whose documentation says what the keywords do;

@@ -1,12 +1,19 @@
 """The memory a run (or an inf-sup inspection) needs, estimated before it starts: a run that
 would not fit in the machine's available memory is refused up front (:func:`check_memory`)."""
+from __future__ import annotations
+
 import math
+from collections.abc import Iterable, Mapping
+from typing import TYPE_CHECKING, Any, Optional, Union
 
 from mpi4py import MPI
 
-from sdm_dolfinx.method.pairs import get_pair
+from sdm_dolfinx.method.pairs import Pair, get_pair
 from sdm_dolfinx.run.options import RunInputError
 from sdm_dolfinx.solvers.memory import per_rank, run_bytes
+
+if TYPE_CHECKING:
+    from sdm_dolfinx.problems import ProblemSpec
 
 # ---- memory estimates (measured with the run's maxrss on dolfinx 0.5.2 / PETSc 3.18, 1 rank,
 # membrane N = 100 to 400 and disc levels 4-5, default solver; see estimate_memory)
@@ -97,7 +104,9 @@ def estimate_memory(spec, values, pair, options=None, steps=0, ranks=1, inspect=
     return float(per_dof) * dim_w + BYTES_PER_PROCESS * ranks + 100.0 * steps, dim_w
 
 
-def check_memory(spec, values, pairs, comm=MPI.COMM_WORLD, cli=False, options=None, steps=0, inspect=False):
+def check_memory(spec: ProblemSpec, values: Mapping[str, Any], pairs: Iterable[Union[str, Pair]],
+                 comm: MPI.Comm = MPI.COMM_WORLD, cli: bool = False, options: Optional[Mapping[str, Any]] = None,
+                 steps: int = 0, inspect: bool = False) -> None:
     """RunInputError when the estimated memory (:func:`estimate_memory`, the largest over
     ``pairs``) exceeds the machine's available memory: "--N 4500 needs about 79 GB (dim W^h =
     6.1e+07 with P1+/P0), this machine has 21 GB available"."""

@@ -5,21 +5,34 @@ too) and reads the state; it cannot change it (the arrays are read-only views) a
 given the Integrator (its solver, scheme and treatment are not for callbacks to touch). The
 older form ``f(n, t, U, V, integ)`` still works for this release, with a FutureWarning.
 """
+from __future__ import annotations
+
 import inspect
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any, Optional, Union
+
+from mpi4py import MPI
 
 import numpy as np
+import numpy.typing as npt
 
 from sdm_dolfinx.errors import SdmError
 from sdm_dolfinx.method import gaps
+
+if TYPE_CHECKING:
+    from petsc4py import PETSc
+
+    from sdm_dolfinx.method.discretisation import Discretisation
+    from sdm_dolfinx.run.integrator import Integrator
 
 #: the FutureWarning of the older callback form (shown once per process by the default filters)
 LEGACY_WARNING = ("observe=f(n, t, U, V, integ) is deprecated and will be removed in the next release: "
                   "write f(state) (sdm_dolfinx.run.State: state.n, state.t, state.U, state.V, state.lam, "
                   "state.discretisation; docs/api.md)")
-_warned: dict = {}           # warnings' registry for LEGACY_WARNING: once per process
+#: the warnings registry of LEGACY_WARNING: once per process
+_warned: dict[Union[str, tuple[str, type[Warning], int]], int] = {}
 
 
 class ObserveError(SdmError, TypeError):
@@ -48,22 +61,22 @@ class State:
 
     n: int
     t: float
-    U: np.ndarray
-    V: np.ndarray
-    lam: np.ndarray
-    discretisation: Any
+    U: npt.NDArray[np.float64]
+    V: npt.NDArray[np.float64]
+    lam: npt.NDArray[np.float64]
+    discretisation: Discretisation
 
-    def vertex_gap(self):
+    def vertex_gap(self) -> float:
         """min over the constrained vertices of U_c - bound, over every rank (collective)."""
         return gaps.vertex_gap(self.discretisation, self.U)
 
-    def boundary_gap(self):
+    def boundary_gap(self) -> float:
         """min over every dof of W^h on the constrained boundary of U_c - bound, over every rank
         (collective; +inf without such dofs)."""
         return gaps.boundary_gap(self.discretisation, self.U)
 
 
-def _read_only(a):
+def _read_only(a: npt.ArrayLike) -> npt.NDArray[np.float64]:
     """A copy of ``a`` seen through a view that cannot be made writeable (its base is read-only)."""
     a = np.array(a, dtype=float)
     a.flags.writeable = False
@@ -78,7 +91,7 @@ class Observer:
         ObserveError: ``f`` is not callable, or takes neither one nor five positional arguments.
     """
 
-    def __init__(self, f, comm):
+    def __init__(self, f: Callable[..., object], comm: MPI.Comm) -> None:
         if not callable(f):
             raise ObserveError(f"observe must be a callable f(state), not a {type(f).__name__}")
         one, five = _takes(f, 1), _takes(f, 5)
@@ -88,7 +101,7 @@ class Observer:
         if self.legacy and comm.rank == 0:
             warnings.warn_explicit(LEGACY_WARNING, FutureWarning, "sdm_dolfinx", 0, registry=_warned)
 
-    def __call__(self, n, t, U, V, lam, integ):
+    def __call__(self, n: int, t: float, U: PETSc.Vec, V: PETSc.Vec, lam: npt.ArrayLike, integ: Integrator) -> None:
         """Call the callback after row ``n`` (U, V: the PETSc vectors; lam: the last step's
         contact forces; integ: given to the older form only)."""
         if self.legacy:
@@ -97,7 +110,7 @@ class Observer:
         self.f(State(n, t, U.array_r, V.array_r, _read_only(lam), integ.discretisation))
 
 
-def _takes(f, k):
+def _takes(f: Callable[..., object], k: int) -> Optional[bool]:
     """Whether ``f`` accepts ``k`` positional arguments (None: its signature is unknown)."""
     try:
         sig = inspect.signature(f)
@@ -110,9 +123,9 @@ def _takes(f, k):
     return True
 
 
-def _name(f):
+def _name(f: object) -> str:
     return getattr(f, "__qualname__", None) or type(f).__name__
 
 
-def _signature(f):
+def _signature(f: Callable[..., object]) -> str:
     return str(inspect.signature(f))

@@ -17,9 +17,12 @@ In Python a method's options are grouped by owner, as dolfinx's ``petsc_options`
 ``friction_options={"mu": 0.3}``; :func:`collect` turns the keywords into the flat options
 (``run.json``'s names), :func:`grouped` the flat options into keywords.
 """
+from __future__ import annotations
+
 import dataclasses
 import warnings
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
+from typing import Any, Optional
 
 from sdm_dolfinx import contact, schemes
 from sdm_dolfinx.contact import friction as _friction
@@ -44,7 +47,7 @@ RUN, FRICTION, METHOD, OUTPUT, RESTART = (
 GROUPS = (RUN, FRICTION, METHOD, OUTPUT, RESTART)
 
 
-def _check_pair(value, label):
+def _check_pair(value: Any, label: str) -> list[str]:
     if isinstance(value, Pair) or (isinstance(value, str) and value in PAIRS):
         return []
     return [f"unknown pair {value!r}; choose one of {', '.join(PAIRS)}"]
@@ -58,8 +61,8 @@ _LINEAR_HELP = (
     "BoomerAMG on the reduced matrix (set up when the active set changes); cg-amg = CG on the inactive set "
     "with one BoomerAMG set-up of the step matrix; cg-gamg = CG on the inactive set with one GAMG set-up "
     "(rigid body modes), no factorisation")
-_POSITIVE = dict(type=float, low=0.0, low_strict=True, expect="a positive finite number")
-_COUNT = dict(type=int, low=1, expect="an integer >= 1", metavar="K")
+_POSITIVE: dict[str, Any] = dict(type=float, low=0.0, low_strict=True, expect="a positive finite number")
+_COUNT: dict[str, Any] = dict(type=int, low=1, expect="an integer >= 1", metavar="K")
 
 #: the options of every run (``{choices}``, ``{default}``, ``{unit}`` in a help are filled in by
 #: the command line, the default being the problem's where it declares one)
@@ -114,21 +117,23 @@ MAX_STEPS = 1e7
 STEP_RTOL = 1e-9
 
 
-def _owners(kind):
-    return {"scheme": schemes.names, "contact": contact.names, "friction": lambda: _friction.LAWS}[kind]()
+def _owners(kind: str) -> tuple[str, ...]:
+    owners: dict[str, Callable[[], tuple[str, ...]]] = {
+        "scheme": schemes.names, "contact": contact.names, "friction": lambda: _friction.LAWS}
+    return owners[kind]()
 
 
-def options_of(kind, owner):
+def options_of(kind: str, owner: str) -> tuple[Param, ...]:
     """The options the ``kind`` (``"scheme"``, ``"contact"``, ``"friction"``) ``owner`` declares."""
     if kind == "scheme":
         return tuple(schemes.get(owner).options)
     return tuple(contact.options_of(owner) if kind == "contact" else _friction.options_of(owner))
 
 
-def _owned():
+def _owned() -> dict[str, tuple[str, str, Param]]:
     """name -> (kind, owner, Param) of every option the registered schemes, contact treatments
     and friction laws declare (RunInputError when two declare one name)."""
-    out = {}
+    out: dict[str, tuple[str, str, Param]] = {}
     for kind in OWNER_KINDS:
         for owner in _owners(kind):
             for p in options_of(kind, owner):
@@ -140,7 +145,7 @@ def _owned():
     return out
 
 
-def declarations():
+def declarations() -> tuple[RunOption, ...]:
     """Every run option now: :data:`TABLE`, then the options of every registered scheme,
     contact treatment and friction law (``owner`` set, the group of their kind)."""
     fields = [f.name for f in dataclasses.fields(Param)]
@@ -149,12 +154,12 @@ def declarations():
     return (*TABLE, *owned)
 
 
-def names():
+def names() -> tuple[str, ...]:
     """Every run option's name (``run.json``'s ``run_options`` keys)."""
     return tuple(p.name for p in declarations())
 
 
-def complete(given, problem_defaults=None):
+def complete(given: Mapping[str, Any], problem_defaults: Optional[Mapping[str, Any]] = None) -> dict[str, Any]:
     """Every run option: ``given`` (flat), else the problem's declared default (the options
     declared ``problem_default``), else the table's (None for a method's options: its owner's)."""
     out = {p.name: None if p.owner else p.default for p in declarations()}
@@ -163,7 +168,7 @@ def complete(given, problem_defaults=None):
     return out
 
 
-def collect(given, where="simulate", stacklevel=3):
+def collect(given: Mapping[str, Any], where: str = "simulate", stacklevel: int = 3) -> dict[str, Any]:
     """The flat run options (``run.json``'s names) of the keywords ``given`` to ``where``
     (simulate or plan; None values are not given): the table's options as they are, the groups
     (``scheme_options``, ...) opened. The flat spelling of a method's option (``mu=0.3``) is a
@@ -173,9 +178,11 @@ def collect(given, where="simulate", stacklevel=3):
         RunInputError: an unknown keyword, an option in another owner's group, one given twice.
     """
     owned, groups = _owned(), {kw: kind for kind, (kw, _) in OWNER_KINDS.items()}
-    flat, errors, unknown = {}, [], []
+    flat: dict[str, Any] = {}
+    errors: list[str] = []
+    unknown: list[str] = []
 
-    def put(name, value):
+    def put(name: str, value: Any) -> None:
         if name in flat:
             errors.append(f"{name} is given twice (as {name}= and in {owned[name][0]}_options)")
         elif value is not None:
@@ -202,7 +209,8 @@ def collect(given, where="simulate", stacklevel=3):
     return flat
 
 
-def _open_group(keyword, kind, value, owned, put):
+def _open_group(keyword: str, kind: str, value: Any, owned: Mapping[str, tuple[str, str, Param]],
+                put: Callable[[str, Any], None]) -> list[str]:
     """Messages for the group ``keyword`` (e.g. ``scheme_options``) of ``kind``; its options go to ``put``."""
     if value is None:
         return []
@@ -225,12 +233,12 @@ def _open_group(keyword, kind, value, owned, put):
     return errors
 
 
-def grouped(flat):
+def grouped(flat: Mapping[str, Any]) -> dict[str, Any]:
     """The keywords of :func:`~sdm_dolfinx.run.simulate` for flat run options (``run.json``'s
     ``run_options``, a TOML file, the command line): each option of a scheme, contact treatment
     or friction law in its group; None values left out."""
     owned = _owned()
-    out = {}
+    out: dict[str, Any] = {}
     for k, v in flat.items():
         if v is None:
             continue
@@ -241,34 +249,35 @@ def grouped(flat):
     return out
 
 
-def method_names():
+def method_names() -> tuple[str, ...]:
     """The options of the method group (where K^h acts, the contact treatment, the schemes' and
     treatments' options): recorded at the top of ``run.json`` when they differ from the default."""
     return tuple(p.name for p in declarations() if p.group == METHOD)
 
 
-def check(o, cli=False):
+def check(o: Mapping[str, Any], cli: bool = False) -> None:
     """Every message refusing the complete flat run options ``o`` (:func:`complete`), joined in
     one RunInputError: each option against its declaration, a method's option given to another
     method (it would be ignored), and the rules between options. ``cli``: name the options as the
     command line spells them."""
-    label = (lambda p: f"--{p.option}") if cli else (lambda p: p.name)
-    errors = []
+    label: Callable[[Param], str] = (lambda p: f"--{p.option}") if cli else (lambda p: p.name)
+    errors: list[str] = []
     decl = declarations()
     for p in decl:
         if p.owner is None:
             errors += p.check(o.get(p.name), label(p))
     for p in decl:
         if p.owner is not None:
-            errors += _owned_errors(p, o, label(p))
+            errors += _owned_errors(p, p.owner, o, label(p))
     errors += _rules(o, {p.name: label(p) for p in decl})
     if errors:
         raise RunInputError("; ".join(errors))
 
 
-def _owned_errors(p, o, label):
-    """The one rule of a method's option: given to its owner only, then checked by its declaration."""
-    kind, owner = p.owner
+def _owned_errors(p: RunOption, owned_by: tuple[str, str], o: Mapping[str, Any], label: str) -> list[str]:
+    """The one rule of a method's option (``p``, of ``owned_by``: its ``owner``): given to its
+    owner only, then checked by its declaration."""
+    kind, owner = owned_by
     chosen = o.get(kind) or ("none" if kind == "friction" else None)
     value = o.get(p.name)
     if chosen != owner:
@@ -279,11 +288,11 @@ def _owned_errors(p, o, label):
     return p.check(value, label)
 
 
-def _rules(o, label):
+def _rules(o: Mapping[str, Any], label: Mapping[str, str]) -> list[str]:
     """Messages for combinations of options that cannot run together."""
-    errors = []
+    errors: list[str] = []
     dt, T = o.get("dt"), o.get("T")
-    if not (_TABLE["dt"].complaints(dt) or _TABLE["T"].complaints(T)):
+    if dt is not None and T is not None and not (_TABLE["dt"].complaints(dt) or _TABLE["T"].complaints(T)):
         if T < dt:
             errors.append(f"{label['T']} ({T}) must be >= {label['dt']} ({dt})")
         elif T / dt > MAX_STEPS:
@@ -292,7 +301,7 @@ def _rules(o, label):
         else:
             errors += _check_whole_steps(T, dt)
     pair, mass = o.get("pair"), o.get("mass")
-    if mass is not None and not _check_pair(pair, "pair"):
+    if mass is not None and pair is not None and not _check_pair(pair, "pair"):
         pair = get_pair(pair) if isinstance(pair, str) else pair
         if mass in MASS_TREATMENTS and mass not in pair.allowed_masses():
             errors.append(f"mass {mass} is not available for {pair.name}; choose {', '.join(pair.allowed_masses())}")
@@ -306,7 +315,7 @@ def _rules(o, label):
     return errors
 
 
-def _treatment_solver(o, label):
+def _treatment_solver(o: Mapping[str, Any], label: Mapping[str, str]) -> list[str]:
     """A contact treatment other than the exact one brings its own step solver (a Newton method on
     its equation, one factorisation of the step matrix): a step-solver choice would be ignored."""
     contact = o.get("contact")
@@ -322,7 +331,7 @@ def _treatment_solver(o, label):
     return errors
 
 
-def _check_whole_steps(T, dt):
+def _check_whole_steps(T: float, dt: float) -> list[str]:
     """A message when T is not a whole number of steps of dt (relative tolerance
     :data:`STEP_RTOL`): the run would silently stop short of T. The steps are counted as the
     run counts them (:func:`~sdm_dolfinx.run.result.num_steps`), so T = 0.02, dt = 1e-4
@@ -334,6 +343,6 @@ def _check_whole_steps(T, dt):
             f"T = {_num(n * dt)} or {_num((n + 1) * dt)}"]
 
 
-def _num(x):
+def _num(x: float) -> str:
     """A time for messages: 0.009, not 0.009000000000000001."""
     return f"{x:.12g}"

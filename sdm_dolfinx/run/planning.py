@@ -6,43 +6,52 @@ output folder, in one :class:`RunInputError` giving every reason, before anythin
 and options are recorded in ``run.json``, so a restart, the ``energy`` command and the pictures
 rebuild the same run from the folder alone (:func:`_restart_plan`).
 """
+from __future__ import annotations
+
 import os
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, Optional, Union
 
 from mpi4py import MPI
 
 from sdm_dolfinx import compat
 from sdm_dolfinx.io.folder import RunFolderError, check_out, read_info
 from sdm_dolfinx.method import quadrature
-from sdm_dolfinx.problems import ProblemInputError, resolve, spec_of_run
+from sdm_dolfinx.problems import ProblemInputError, ProblemSpec, resolve, spec_of_run
 from sdm_dolfinx.run import options as run_options
 from sdm_dolfinx.run.loop import execute
 from sdm_dolfinx.run.memory import check_memory
 from sdm_dolfinx.run.options import RESTART_MAY_CHANGE, RunInputError
-from sdm_dolfinx.run.result import num_steps
+from sdm_dolfinx.run.result import OnStep, Result, num_steps
+
+#: an output folder: a name or a path
+Folder = Union[str, Path]
 
 
 @dataclass
 class RunPlan:
     """A checked run: the problem's declaration, its parameter values and the run options (flat,
     every one: :func:`sdm_dolfinx.run.options.complete`)."""
-    spec: object
-    params: dict
-    options: dict
-    out: object = None
+    spec: ProblemSpec
+    params: dict[str, Any]
+    options: dict[str, Any]
+    out: Optional[Folder] = None
     restart: bool = False
     #: what the folder held when checked ({"run_id": ...}), checked again under the run's lock
-    folder_seen: object = None
+    folder_seen: Optional[dict[str, Any]] = None
     #: a restart allowed to continue with a changed problem file or package: what changed
-    changed_source: object = None
+    changed_source: Optional[list[str]] = None
 
     @property
-    def steps(self):
+    def steps(self) -> int:
         return num_steps(self.options["T"], self.options["dt"])
 
-    def run(self, comm=MPI.COMM_WORLD, progress=False, handle_signals=False, on_step=None, petsc_options=None,
-            extra_info=None, observe=None, constraint_tol=1e-8):
+    def run(self, comm: MPI.Comm = MPI.COMM_WORLD, progress: bool = False, handle_signals: bool = False,
+            on_step: Optional[OnStep] = None, petsc_options: Optional[Mapping[str, Any]] = None,
+            extra_info: Optional[Mapping[str, Any]] = None, observe: Optional[Callable[..., object]] = None,
+            constraint_tol: float = 1e-8) -> Result:
         """Build the problem and run it (the keywords are :func:`sdm_dolfinx.run.simulate`'s)."""
         problem = self.spec.problem(comm, **self.params)
         return execute(problem, self.options, out=self.out, restart=self.restart, progress=progress,
@@ -51,8 +60,10 @@ class RunPlan:
                        folder_seen=self.folder_seen, changed_source=self.changed_source)
 
 
-def plan(problem=None, params=None, *, out=None, overwrite=False, restart=False, allow_changed_source=False,
-         comm=MPI.COMM_WORLD, cli=False, **options):
+def plan(problem: Union[ProblemSpec, str, Path, None] = None, params: Optional[Mapping[str, Any]] = None,
+         *, out: Optional[Folder] = None, overwrite: bool = False, restart: bool = False,
+         allow_changed_source: bool = False, comm: MPI.Comm = MPI.COMM_WORLD, cli: bool = False,
+         **options: Any) -> RunPlan:
     """Check a run's inputs and the output folder; returns a :class:`RunPlan` (nothing written).
 
     Args:
@@ -71,8 +82,9 @@ def plan(problem=None, params=None, *, out=None, overwrite=False, restart=False,
                      allow_changed_source=allow_changed_source)
 
 
-def check_run(problem, params, given, *, out=None, overwrite=False, restart=False, comm=MPI.COMM_WORLD, cli=False,
-              allow_changed_source=False):
+def check_run(problem: Union[ProblemSpec, str, Path, None], params: Optional[Mapping[str, Any]],
+              given: Mapping[str, Any], *, out: Optional[Folder] = None, overwrite: bool = False, restart: bool = False,
+              comm: MPI.Comm = MPI.COMM_WORLD, cli: bool = False, allow_changed_source: bool = False) -> RunPlan:
     """The :class:`RunPlan` of a declared ``problem`` with the flat run options ``given``
     (:func:`sdm_dolfinx.run.options.collect`); RunInputError with every reason otherwise."""
     if restart and overwrite:
@@ -84,6 +96,7 @@ def check_run(problem, params, given, *, out=None, overwrite=False, restart=Fals
     try:
         if restart:
             return _restart_plan(out, given, comm, problem, params, allow_changed_source, cli)
+        assert problem is not None          # refused above
         spec = resolve(problem)
         values = spec.values(params, cli=cli)
     except (ProblemInputError, RunFolderError) as e:
@@ -94,7 +107,7 @@ def check_run(problem, params, given, *, out=None, overwrite=False, restart=Fals
     return RunPlan(spec, values, opts, out, folder_seen=check_folder(out, overwrite, comm, cli))
 
 
-def check_folder(out, overwrite, comm, cli=False):
+def check_folder(out: Optional[Folder], overwrite: bool, comm: MPI.Comm, cli: bool = False) -> Optional[dict[str, Any]]:
     """``{"run_id": ...}`` of the run ``out`` holds (None: none), to be checked again under the
     run's lock; None without ``out``. RunInputError for a folder name the file system cannot take,
     or a folder holding a run (or a damaged or foreign ``run.json``) without ``overwrite``."""
@@ -107,7 +120,7 @@ def check_folder(out, overwrite, comm, cli=False):
         raise RunInputError(str(e)) from None
 
 
-def check_out_name(out, cli=False):
+def check_out_name(out: Folder, cli: bool = False) -> None:
     """RunInputError for an output folder the file system cannot take: an empty name (which
     would be the current folder) or a name component longer than the file system allows
     (checked before any folder is created, so nothing is left behind)."""
@@ -130,13 +143,16 @@ def check_out_name(out, cli=False):
                             f"at most 4000")
 
 
-def _existing_parent(path):
+def _existing_parent(path: Path) -> Path:
     while not path.exists():
         path = path.parent
     return path
 
 
-def _restart_plan(out, given, comm, problem=None, params=None, allow_changed_source=False, cli=False):
+def _restart_plan(out: Optional[Folder], given: Mapping[str, Any], comm: MPI.Comm,
+                  problem: Union[ProblemSpec, str, Path, None] = None,
+                  params: Optional[Mapping[str, Any]] = None, allow_changed_source: bool = False,
+                  cli: bool = False) -> RunPlan:
     """The plan of the run in ``out`` to be continued (the options ``given`` must be the run's,
     but those of :data:`~sdm_dolfinx.run.options.RESTART_MAY_CHANGE`; ``problem``, if given, the
     run's problem; no ``params``: the run's own)."""
@@ -183,7 +199,7 @@ def _restart_plan(out, given, comm, problem=None, params=None, allow_changed_sou
                    changed_source=sources or None)
 
 
-def source_changes(info):
+def source_changes(info: Mapping[str, Any]) -> list[str]:
     """What changed since the run in ``info`` (its run.json) started, in words: its problem file
     (SHA-256 of its bytes) or the package's version; empty when neither did."""
     changed = []

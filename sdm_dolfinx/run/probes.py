@@ -1,11 +1,19 @@
 """Probes: the displacement at a point and the contact stress at the constrained vertex nearest
 to it, reduced over ranks (every rank gets the value)."""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
 from mpi4py import MPI
 
 import numpy as np
+import numpy.typing as npt
 from dolfinx import fem
 
 from sdm_dolfinx import compat
+
+if TYPE_CHECKING:
+    from petsc4py import PETSc
 
 
 class PointProbe:
@@ -28,7 +36,7 @@ class PointProbe:
         self.component = component
         self.f = fem.Function(V)
 
-    def __call__(self, vec):
+    def __call__(self, vec: PETSc.Vec) -> float:
         """Evaluate the W-vector ``vec`` (owned entries) at the probe point."""
         n = len(vec.array)
         self.f.x.array[:n] = vec.array
@@ -56,11 +64,11 @@ class ConstraintProbe:
         self.vertex = self.comm.allreduce(x, op=MPI.SUM)
         self.measure = discretisation.cmeasure
 
-    def __call__(self, lam):
+    def __call__(self, lam: npt.NDArray[np.float64]) -> float:
         val = lam[self.index] / self.measure[self.index] if self.index >= 0 else 0.0
         return self.comm.allreduce(float(val), op=MPI.SUM)
 
-    def at(self, values):
+    def at(self, values: npt.NDArray[np.float64]) -> float:
         """``values`` (one per owned constrained vertex) at the probe's vertex, on every rank."""
         val = values[self.index] if self.index >= 0 else 0.0
         return self.comm.allreduce(float(val), op=MPI.SUM)

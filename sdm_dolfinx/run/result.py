@@ -1,14 +1,27 @@
 """What a run returns (:class:`Result`) and the time series it records (:class:`TimeSeries`)."""
+from __future__ import annotations
+
 import warnings
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import TYPE_CHECKING, Any, Optional, Protocol
 
 from mpi4py import MPI
 
 import numpy as np
+import numpy.typing as npt
 
 from sdm_dolfinx.errors import StepError
 from sdm_dolfinx.method import gaps
+
+if TYPE_CHECKING:
+    from dolfinx import fem
+    from petsc4py import PETSc
+
+    from sdm_dolfinx.method.discretisation import Discretisation
+    from sdm_dolfinx.problems import Problem
+    from sdm_dolfinx.run.probes import ConstraintProbe, PointProbe
+
 #: the columns of every run's time series; a Problem adds its ``extra_columns``
 BASE_COLUMNS = ("step", "t", "energy", "kinetic", "potential", "u_probe", "lambda_probe", "n_active",
                 "newton_its")
@@ -28,6 +41,11 @@ BOUNDARY_GAP = "gap_min_boundary"
 #: constrained boundary (the diagonal of its bounding box)
 BOUNDARY_GAP_TOL = 1e-3
 
+#: one row of the time series: column -> value (and ``linear_its_total``)
+Row = dict[str, float]
+#: ``simulate``'s ``on_step(step, row)``, called after every step; a true return requests a stop
+OnStep = Callable[[int, Row], object]
+
 
 class BoundaryGapWarning(UserWarning):
     """The constrained boundary sinks below the bound between constrained vertices (P2 mid-edge
@@ -35,7 +53,7 @@ class BoundaryGapWarning(UserWarning):
     BoundaryGapWarning)``."""
 
 
-def num_steps(T, dt):
+def num_steps(T: float, dt: float) -> int:
     """Number of steps of length dt in [0, T] (T rounded to a multiple of dt)."""
     return int(np.floor(T / dt + 1e-9))
 
@@ -44,16 +62,16 @@ class Formulation(Protocol):
     """What the time series reads of the run's formulation (the Integrator is one): the discrete
     energy and momentum of the state, collective, changing nothing."""
 
-    def energies(self, U, V, time=None):
+    def energies(self, U: PETSc.Vec, V: PETSc.Vec, time: Optional[float] = None) -> tuple[float, float]:
         """(kinetic, potential) of the state, the load taken at ``time``."""
 
-    def contact_energy(self, U):
+    def contact_energy(self, U: PETSc.Vec) -> float:
         """The energy stored in the contact treatment at U (0.0 for the exact contact)."""
 
-    def momentum(self, V, component):
+    def momentum(self, V: PETSc.Vec, component: int) -> float:
         """The discrete momentum along ``component``."""
 
-    def load(self, t=None):
+    def load(self, t: Optional[float] = None) -> PETSc.Vec:
         """The load vector L at time ``t``."""
 
 
@@ -70,14 +88,15 @@ class TimeSeries:
             :data:`CONTACT_ENERGY` column).
     """
 
-    def __init__(self, formulation, discretisation, problem, probe, cprobe, nsteps, friction=False,
-                 contact_energy=False):
+    def __init__(self, formulation: Formulation, discretisation: Discretisation, problem: Problem, probe: PointProbe,
+                 cprobe: ConstraintProbe, nsteps: int, friction: bool = False, contact_energy: bool = False) -> None:
         self.formulation, self.problem, self.probe, self.cprobe = formulation, problem, probe, cprobe
         self.discretisation = d = discretisation
         boundary = (BOUNDARY_GAP,) if d.num_boundary_dofs else ()
-        friction = FRICTION_COLUMNS if friction else ()
+        friction_columns = FRICTION_COLUMNS if friction else ()
         contact = (CONTACT_ENERGY,) if contact_energy else ()
-        self.columns = BASE_COLUMNS + contact + tuple(problem.extra_columns) + friction + boundary
+        self.columns: tuple[str, ...] = (BASE_COLUMNS + contact + tuple(problem.extra_columns) + friction_columns
+                                         + boundary)
         self.data = {c: np.zeros(nsteps + 1) for c in self.columns}
         self.comm = problem.mesh.comm
         if boundary:
@@ -87,7 +106,9 @@ class TimeSeries:
             self.boundary_tol = BOUNDARY_GAP_TOL * float(np.linalg.norm(hi - lo))
         self.warned = False
 
-    def record(self, n, t, U, V, lam, its, n_active, step=None, *, linear_its_total, slip=None):
+    def record(self, n: int, t: float, U: PETSc.Vec, V: PETSc.Vec, lam: npt.NDArray[np.float64], its: int,
+               n_active: int, step: Optional[Mapping[str, Any]] = None, *, linear_its_total: int,
+               slip: Optional[npt.NDArray[np.float64]] = None) -> Row:
         """Compute row ``n`` (time ``t``) from the state and the step solver's ``step`` info (None
         for row 0); returns it as a dict (with ``linear_its_total``, the cumulative linear
         iterations, for callbacks). ``slip``: the step's slip at the owned constrained vertices
@@ -120,15 +141,19 @@ class TimeSeries:
             self.data[c][n] = row[c]
         return row
 
-    def _friction_row(self, row, n, step, slip):
+    def _friction_row(self, row: Row, n: int, step: Mapping[str, Any],
+                      slip: Optional[npt.NDArray[np.float64]]) -> None:
         """The friction columns of row ``n`` (0 in row 0; ``dissipated`` accumulates)."""
         before = self.data["dissipated"][n - 1] if n > 0 else 0.0
-        row.update(tangential_force=step.get("tangential_force", 0.0),
-                   slip_probe=self.cprobe.at(slip) if step else 0.0,
+        slip_probe = 0.0
+        if step:
+            assert slip is not None, "a step with friction has its slip (Integrator.slip)"
+            slip_probe = self.cprobe.at(slip)
+        row.update(tangential_force=step.get("tangential_force", 0.0), slip_probe=slip_probe,
                    dissipated=before - step.get("friction_work", 0.0),
                    n_stick=step.get("n_stick", 0), n_slip=step.get("n_slip", 0))
 
-    def _warn(self, n, t, U, gap):
+    def _warn(self, n: int, t: float, U: PETSc.Vec, gap: float) -> None:
         """A :class:`BoundaryGapWarning` on rank 0, once per run, when the constrained boundary sinks
         below the bound between the constrained vertices by more than ``boundary_tol``."""
         if self.warned:
@@ -148,14 +173,14 @@ class TimeSeries:
                 f"boundary's diameter); every step's minimum is in the column {BOUNDARY_GAP}",
                 BoundaryGapWarning, "sdm_dolfinx", 0)
 
-    def summary(self, first=0):
+    def summary(self, first: int = 0) -> dict[str, float]:
         """What ``run.json`` gets from the time series of steps ``first``+1.. (the minimum of
         :data:`BOUNDARY_GAP` over the run, when the column exists)."""
         if BOUNDARY_GAP not in self.columns:
             return {}
         return {"min_gap_boundary": float(np.min(self.data[BOUNDARY_GAP][first + 1:], initial=np.inf))}
 
-    def load_rows(self, lines):
+    def load_rows(self, lines: Iterable[str]) -> None:
         """Fill rows from CSV lines (``step,...`` in the column order; a restart's history)."""
         for line in lines:
             vals = line.split(",")
@@ -178,46 +203,52 @@ class Result:
             consistent block variant.
         discretisation: the :class:`sdm_dolfinx.method.discretisation.Discretisation`.
     """
-    timeseries: dict
-    info: dict
-    gap_imposed: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    gap_end: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    U: object = None
-    V: object = None
-    discretisation: object = None
+    timeseries: dict[str, npt.NDArray[np.float64]]
+    info: dict[str, Any]
+    gap_imposed: npt.NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    gap_end: npt.NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    U: Optional[PETSc.Vec] = None
+    V: Optional[PETSc.Vec] = None
+    discretisation: Optional[Discretisation] = None
 
-    def displacement(self):
+    def _discretisation(self) -> Discretisation:
+        """:attr:`discretisation` (ValueError for a Result built without one)."""
+        if self.discretisation is None:
+            raise ValueError("this Result has no discretisation (it was built without the run's final state)")
+        return self.discretisation
+
+    def displacement(self) -> fem.Function:
         """The final displacement U as a dolfinx Function of W^h (for plotting, probing, post-processing)."""
-        return self._function(self.discretisation.W, self.U, "displacement")
+        return self._function(self._discretisation().W, self.U, "displacement")
 
-    def velocity(self):
+    def velocity(self) -> fem.Function:
         """The final physical velocity as a dolfinx Function: v_h = C^-1 B Vbar in H^h (C as the
         run treats it: diagonal for P0, lumped for P1), V in H^h for the consistent block
         variant, Vbar in W^h for the standard method (H^h = W^h). The XDMF's ``velocity``."""
-        d = self.discretisation
+        d = self._discretisation()
         if d.mass == "consistent":
             return self._function(d.H, self.V, "velocity")
         if d.H is None:
             return self._function(d.W, self.V, "velocity")
         return self._function(d.H, d.physical_velocity(self.V, d.B.createVecLeft()), "velocity")
 
-    def vbar(self):
+    def vbar(self) -> fem.Function:
         """The final Vbar in W^h, the scheme's M-formulation vector (the XDMF's ``Vbar_W``): only
         M Vbar is determined by the scheme; with a singular M (dim H^h < dim W^h) Vbar also has a
         component in Ker(M) that carries no kinetic energy (see docs/outputs.md). ValueError for
         the consistent block variant, which has no Vbar."""
-        d = self.discretisation
+        d = self._discretisation()
         if d.mass == "consistent":
             raise ValueError("the (U, V) block system (--mass consistent) has no Vbar: its velocity is in H^h")
         return self._function(d.W, self.V, "Vbar_W")
 
-    def max_energy_deviation(self):
+    def max_energy_deviation(self) -> float:
         """max_n |J^n - J^0| / |J^0| of the discrete energy (Theorem 2: 0 for the midpoint scheme without impact)."""
         E = np.asarray(self.timeseries["energy"])
         return float(np.max(np.abs(E - E[0])) / abs(E[0])) if E.size and E[0] != 0 else float("nan")
 
     @staticmethod
-    def _function(space, vec, name):
+    def _function(space: fem.FunctionSpace, vec: PETSc.Vec, name: str) -> fem.Function:
         from dolfinx import fem
         f = fem.Function(space, name=name)
         f.x.array[:len(vec.array)] = vec.array

@@ -9,7 +9,7 @@ from sdm_dolfinx.errors import SdmError
 class Interrupted(SdmError, RuntimeError):
     """The run stopped at the end of a step on request (SIGINT/SIGTERM), after a checkpoint."""
 
-    def __init__(self, message, signum):
+    def __init__(self, message: str, signum: int) -> None:
         super().__init__(message)
         self.signum = signum
 

@@ -1,30 +1,36 @@
 """The one way to run: :func:`simulate` (and :func:`launch`, its deprecated former name for a
 declared problem)."""
+from __future__ import annotations
+
 import warnings
-from typing import Any, Callable, Mapping, Optional, Union
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any, Optional, Union
 
 from mpi4py import MPI
 
-from sdm_dolfinx.problems import Problem
+from sdm_dolfinx.method.pairs import Pair
+from sdm_dolfinx.problems import Problem, ProblemSpec
 from sdm_dolfinx.run import options as run_options
 from sdm_dolfinx.run.loop import execute
 from sdm_dolfinx.run.options import RunInputError
-from sdm_dolfinx.run.planning import check_folder, check_run
-from sdm_dolfinx.run.result import Result
+from sdm_dolfinx.run.planning import Folder, check_folder, check_run
+from sdm_dolfinx.run.result import OnStep, Result
 from sdm_dolfinx.solvers.options import unknown_option
 
 
-def simulate(problem: Any = None, params: Optional[Mapping[str, Any]] = None, *, out=None, overwrite: bool = False,
-             restart: bool = False, allow_changed_source: bool = False, comm=None,
-             pair: Any = None, scheme: Optional[str] = None, dt: Optional[float] = None, T: Optional[float] = None,
+def simulate(problem: Union[Problem, ProblemSpec, str, Path, None] = None, params: Optional[Mapping[str, Any]] = None,
+             *, out: Optional[Folder] = None, overwrite: bool = False, restart: bool = False,
+             allow_changed_source: bool = False, comm: Optional[MPI.Comm] = None, pair: Union[str, Pair, None] = None,
+             scheme: Optional[str] = None, dt: Optional[float] = None, T: Optional[float] = None,
              mass: Optional[str] = None, vi_solver: Optional[str] = None, linear: Optional[str] = None,
              quadrature_degree: Union[int, str, None] = None, friction: Optional[str] = None,
              constrain: Optional[str] = None, contact: Optional[str] = None, write_every: Optional[int] = None,
              checkpoint_every: Optional[int] = None, scheme_options: Optional[Mapping[str, Any]] = None,
              contact_options: Optional[Mapping[str, Any]] = None,
              friction_options: Optional[Mapping[str, Any]] = None,
-             progress: bool = False, handle_signals: bool = False, on_step: Optional[Callable] = None,
-             observe: Optional[Callable] = None, petsc_options: Optional[Mapping[str, Any]] = None,
+             progress: bool = False, handle_signals: bool = False, on_step: Optional[OnStep] = None,
+             observe: Optional[Callable[..., object]] = None, petsc_options: Optional[Mapping[str, Any]] = None,
              extra_info: Optional[Mapping[str, Any]] = None, constraint_tol: float = 1e-8,
              **deprecated: Any) -> Result:
     """Run a problem from t = 0 to T; every input is checked before anything is built or written.
@@ -41,9 +47,8 @@ def simulate(problem: Any = None, params: Optional[Mapping[str, Any]] = None, *,
         overwrite: replace the run in ``out``.
         restart: continue the run in ``out`` from its checkpoint (same problem, parameters, options
             and ranks; only ``checkpoint_every`` may differ).
-        allow_changed_source: with ``restart``, continue even though the problem file or the
-            package's version changed since the run started (refused otherwise: the physics may
-            differ); run.json records what changed.
+        allow_changed_source: with ``restart``, continue although the problem file or the package's
+            version changed since the run started (refused otherwise); run.json records what changed.
         comm: the ranks of a declared problem (default ``MPI.COMM_WORLD``); a Problem's are its mesh's.
         pair, scheme, dt, T, mass, vi_solver, linear, quadrature_degree, friction, constrain, contact,
             write_every, checkpoint_every: the run options (:data:`sdm_dolfinx.run.options.TABLE`:
@@ -82,8 +87,9 @@ def simulate(problem: Any = None, params: Optional[Mapping[str, Any]] = None, *,
          "quadrature_degree": quadrature_degree, "friction": friction, "constrain": constrain, "contact": contact,
          "write_every": write_every, "checkpoint_every": checkpoint_every, "scheme_options": scheme_options,
          "contact_options": contact_options, "friction_options": friction_options, **deprecated})
-    session = dict(progress=progress, handle_signals=handle_signals, on_step=on_step, observe=observe,
-                   petsc_options=petsc_options, extra_info=extra_info, constraint_tol=constraint_tol)
+    session: dict[str, Any] = dict(progress=progress, handle_signals=handle_signals, on_step=on_step,
+                                   observe=observe, petsc_options=petsc_options, extra_info=extra_info,
+                                   constraint_tol=constraint_tol)
     _refuse_early(petsc_options, allow_changed_source, restart)
     if isinstance(problem, Problem):
         if allow_changed_source:
@@ -95,7 +101,7 @@ def simulate(problem: Any = None, params: Optional[Mapping[str, Any]] = None, *,
     return the_plan.run(comm, **session)
 
 
-def _refuse_early(petsc_options, allow_changed_source, restart):
+def _refuse_early(petsc_options: Optional[Mapping[str, Any]], allow_changed_source: bool, restart: bool) -> None:
     """RunInputError for a PETSc option no step solver reads, or allow_changed_source without a restart."""
     unknown = [m for m in map(unknown_option, petsc_options or {}) if m]
     if unknown:
@@ -104,7 +110,8 @@ def _refuse_early(petsc_options, allow_changed_source, restart):
         raise RunInputError("allow_changed_source is for a restart only (restart=True)")
 
 
-def _run_built(problem, params, given, out, overwrite, restart, comm, session):
+def _run_built(problem: Problem, params: Optional[Mapping[str, Any]], given: Mapping[str, Any], out: Optional[Folder],
+               overwrite: bool, restart: bool, comm: Optional[MPI.Comm], session: dict[str, Any]) -> Result:
     """:func:`simulate` of a built Problem: the same checks but of its parameters (built already)."""
     if params:
         raise RunInputError(f"params are the parameters of a declared problem; problem {problem.name!r} is built "
@@ -119,7 +126,8 @@ def _run_built(problem, params, given, out, overwrite, restart, comm, session):
     return execute(problem, opts, out=out, restart=restart, folder_seen=seen, **session)
 
 
-def launch(problem=None, params=None, **kwargs):
+def launch(problem: Union[Problem, ProblemSpec, str, Path, None] = None,
+           params: Optional[Mapping[str, Any]] = None, **kwargs: Any) -> Result:
     """Deprecated: :func:`simulate` runs a declared problem the same way (same arguments); a
     FutureWarning says so."""
     warnings.warn("sdm_dolfinx.run.launch() is deprecated: call sdm_dolfinx.simulate() with the same arguments",

@@ -15,20 +15,22 @@ is one new file here calling :func:`register`, plus its tests. The schemes:
 * ``central-difference``, ``paoli-schatzman`` (restitution e), ``taylor-flanagan``: explicit,
   one solve with M per step, CFL-bounded (:mod:`~sdm_dolfinx.schemes.explicit`).
 """
-from sdm_dolfinx.schemes.base import Scheme
+from sdm_dolfinx.schemes.base import Scheme as Scheme
 
-_REGISTRY = {}
+_REGISTRY: dict[str, Scheme] = {}
 
 
-def register(scheme):
+def register(scheme: Scheme) -> Scheme:
     """Add a :class:`Scheme` instance to the registry."""
     if not isinstance(scheme, Scheme):
         raise TypeError(f"register() takes a Scheme, got {type(scheme).__name__}")
+    if not isinstance(scheme.name, str):        # the registry's key: --scheme NAME, run.json
+        raise TypeError(f"register() takes a Scheme with a name (a str), got name {scheme.name!r}")
     _REGISTRY[scheme.name] = scheme
     return scheme
 
 
-def get(name):
+def get(name: str) -> Scheme:
     """The registered scheme ``name``; ValueError listing the choices otherwise."""
     try:
         return _REGISTRY[name]
@@ -36,7 +38,7 @@ def get(name):
         raise ValueError(f"unknown scheme {name!r}; choose one of {', '.join(_REGISTRY)}") from None
 
 
-def names():
+def names() -> tuple[str, ...]:
     return tuple(_REGISTRY)
 
 

@@ -17,9 +17,25 @@ The defaults are the one-LCP schemes of the paper, K = alpha^2 M + A with alpha 
 and b = L + M (alpha Vbar^n + alpha^2 U^n) (midpoint, backward Euler), which only declare
 ``factor``, ``displacement``, ``velocity`` and ``velocity_block``.
 """
-import copy
+from __future__ import annotations
 
-from sdm_dolfinx.params import values_of
+import copy
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any, Optional, TypeVar
+
+import numpy as np
+import numpy.typing as npt
+
+from sdm_dolfinx.params import Param, values_of
+
+if TYPE_CHECKING:
+    from petsc4py import PETSc
+
+#: the run's :class:`~sdm_dolfinx.run.integrator.Integrator`, which a layer below cannot import
+Integrator = Any
+#: an array of the owned dofs
+Array = npt.NDArray[np.float64]
+_S = TypeVar("_S", bound="Scheme")
 
 
 class Scheme:
@@ -39,16 +55,16 @@ class Scheme:
         stateful: the scheme keeps state between steps beyond (U, V) (a checkpoint of U and V
             cannot restart it).
     """
-    name = None
-    factor = None
-    constrained = None
-    load_theta = None
-    options = ()
-    explicit = False
-    stateful = False
+    name: Optional[str] = None
+    factor: Optional[float] = None
+    constrained: Optional[str] = None
+    load_theta: Optional[float] = None
+    options: tuple[Param, ...] = ()
+    explicit: bool = False
+    stateful: bool = False
 
     # ------------------------------------------------------------------ set-up
-    def configure(self, options=None):
+    def configure(self: _S, options: Optional[Mapping[str, Any]] = None) -> _S:
         """A copy of this scheme for one run, with ``options`` (a dict; None values: the
         defaults of :attr:`options`). OptionError (a ValueError, one line) on an option this
         scheme does not declare or a value its declaration refuses."""
@@ -57,60 +73,63 @@ class Scheme:
         scheme.set_parameters(**values)
         return scheme
 
-    def set_parameters(self, **values):
+    def set_parameters(self, **values: Any) -> None:
         """Set the values of :attr:`options` (checked by their declarations) on this copy."""
         for k, v in values.items():
             setattr(self, k, v)
 
-    def refuse(self, integ):
+    def refuse(self, integ: Integrator) -> Optional[str]:
         """The one-line reason this scheme cannot run with ``integ``'s discretisation, contact
         treatment, friction or solver, or None (default: None)."""
         return None
 
-    def setup(self, integ):
+    def setup(self, integ: Integrator) -> None:
         """What the step matrix needs, before it is built (default: nothing)."""
 
-    def coefficients(self, dt):
+    def coefficients(self, dt: float) -> tuple[float, float]:
         """(c_M, c_A) of the step matrix K = c_M M + c_A A: (alpha^2, 1), alpha = factor / dt."""
+        if self.factor is None:
+            raise NotImplementedError(f"scheme {self.name!r} has no factor: it must define coefficients()")
         alpha = self.factor / dt
         return alpha * alpha, 1.0
 
-    def step_matrix(self, integ):
+    def step_matrix(self, integ: Integrator) -> Optional[PETSc.Mat]:
         """The step matrix before the Dirichlet elimination, or None for c_M M + c_A A."""
         return None
 
-    def solver_bounds(self, integ):
+    def solver_bounds(self, integ: Integrator) -> Array:
         """The bounds array given to the step solver (default: the discretisation's own; a
         scheme that changes them every step returns a copy it keeps)."""
-        return integ.discretisation.lb
+        lb: Array = integ.discretisation.lb
+        return lb
 
-    def prepare(self, integ):
+    def prepare(self, integ: Integrator) -> None:
         """Once K, the step solver and the contact treatment exist (default: nothing)."""
 
     # ------------------------------------------------------------------ one step
-    def load_time(self, t, dt):
+    def load_time(self, t: float, dt: float) -> float:
         """The time at which the step from ``t`` to ``t + dt`` evaluates a time-dependent load."""
         if self.load_theta is None:
             raise ValueError(f"scheme {self.name!r} does not say when it evaluates a time-dependent load "
                              f"(Scheme.load_theta)")
         return t + self.load_theta * dt
 
-    def start(self, integ, U, V, t):
+    def start(self, integ: Integrator, U: PETSc.Vec, V: PETSc.Vec, t: float) -> Any:
         """The scheme's state before its first step from (U, V) at time t (stateful schemes)."""
         return None
 
-    def rhs(self, integ, U, V, L, t):
+    def rhs(self, integ: Integrator, U: PETSc.Vec, V: PETSc.Vec, L: PETSc.Vec, t: float) -> PETSc.Vec:
         """The step's right-hand side b (``integ.b``, Dirichlet lifting applied) for the state
         (U^n, V^n) at time t and the step's load vector L."""
         return integ.alpha_rhs(U, V, L)
 
-    def guess(self, integ, U, V, X):
+    def guess(self, integ: Integrator, U: PETSc.Vec, V: PETSc.Vec, X: PETSc.Vec) -> None:
         """The solver's initial guess in X (default: U^n, and V^n for the block variant)."""
         X.array[:integ.nW] = U.array
         if integ.block:
             X.array[integ.nW:] = V.array
 
-    def update(self, integ, X, U, V, t):
+    def update(self, integ: Integrator, X: PETSc.Vec, U: PETSc.Vec, V: PETSc.Vec, t: float) -> None:
         """(U, V) <- (U^{n+1}, V^{n+1}) in place from the solution X of the step's LCP."""
         nW = integ.nW
         x = X.array[:nW]
@@ -121,15 +140,15 @@ class Scheme:
         else:
             V.array[:] = self.velocity(x, Un, V.array, integ.alpha)
 
-    def destroy(self, integ):
+    def destroy(self, integ: Integrator) -> None:
         """Free what :meth:`setup` and :meth:`prepare` made (default: nothing)."""
 
-    def imposed_gap(self, integ, X):
+    def imposed_gap(self, integ: Integrator, X: PETSc.Vec) -> float:
         """min over the owned constrained dofs of (constrained iterate - its bound) (local)."""
         d = integ.discretisation
         return float((X.array[d.cdofs] - d.lb).min(initial=float("inf")))
 
-    def needs_m_formulation(self, integ):
+    def needs_m_formulation(self, integ: Integrator) -> Optional[str]:
         """The refusal of the (U, V) block variant (``mass="consistent"``), for the schemes
         written in the M formulation only, or None."""
         if integ.block:
@@ -138,14 +157,14 @@ class Scheme:
         return None
 
     # ------------------------------------------------------- alpha-family updates
-    def displacement(self, x, Un):
+    def displacement(self, x: Array, Un: Array) -> Array:
         """U^{n+1} from the constrained iterate x and U^n (arrays)."""
         raise NotImplementedError
 
-    def velocity(self, x, Un, Vn, alpha):
+    def velocity(self, x: Array, Un: Array, Vn: Array, alpha: float) -> Array:
         """Vbar^{n+1} (the M formulation) from x, U^n, Vbar^n."""
         raise NotImplementedError
 
-    def velocity_block(self, y, Vn):
+    def velocity_block(self, y: Array, Vn: Array) -> Array:
         """V^{n+1} in H^h (the block formulation) from the block's second unknown y and V^n."""
         raise NotImplementedError

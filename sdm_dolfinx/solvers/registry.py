@@ -5,31 +5,77 @@ A step solver is a class with ``solve(b, x) -> {"its", "n_active"}`` (raising
 ``destroy()``. A new one is one new module plus one :func:`register` line at the end of
 this file (or a call from the user's code before the solver is asked for).
 """
-from collections.abc import Sequence
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Optional, Protocol, Union, overload
+
+import numpy as np
+import numpy.typing as npt
 
 from sdm_dolfinx.solvers.semismooth import SemismoothNewton
 from sdm_dolfinx.solvers.snes_vi import SnesVI
 
-_FACTORIES = {}
+if TYPE_CHECKING:
+    from petsc4py import PETSc
 
 
-class _Names(Sequence):
+class StepSolver(Protocol):
+    """What a factory returns: ``solve(b, x)`` writes the step's solution into ``x`` and returns
+    at least ``{"its", "n_active"}`` (VIError when it fails)."""
+
+    @property
+    def lam(self) -> npt.NDArray[np.float64]:
+        """The nodal contact forces at the owned constrained dofs (>= 0 when they push)."""
+
+    @property
+    def total_linear_its(self) -> int:
+        """The linear iterations of every solve so far."""
+
+    @property
+    def prefix(self) -> str:
+        """The instance's PETSc options prefix."""
+
+    def solve(self, b: PETSc.Vec, x: PETSc.Vec) -> dict[str, Any]: ...
+
+    def destroy(self) -> None: ...
+
+
+class Factory(Protocol):
+    """``factory(K, cdofs, lb, *, symmetric_positive, linear, options, factor_matrix, prefix)``
+    (the arguments of :func:`make_vi_solver`)."""
+
+    def __call__(self, K: PETSc.Mat, cdofs: npt.ArrayLike, lb: npt.ArrayLike, /, *, symmetric_positive: bool,
+                 linear: str, options: Optional[Mapping[str, Any]], factor_matrix: Optional[PETSc.Mat],
+                 prefix: Optional[str]) -> StepSolver: ...
+
+
+_FACTORIES: dict[str, Factory] = {}
+
+
+class _Names(Sequence[str]):
     """The registered names in registration order: a read-only tuple that follows
     :func:`register` (for argparse ``choices=`` and ``", ".join(...)``)."""
 
-    def __getitem__(self, i):
+    @overload
+    def __getitem__(self, i: int) -> str: ...
+
+    @overload
+    def __getitem__(self, i: slice) -> tuple[str, ...]: ...
+
+    def __getitem__(self, i: Union[int, slice]) -> Union[str, tuple[str, ...]]:
         return tuple(_FACTORIES)[i]
 
-    def __len__(self):
+    def __len__(self) -> int:
         return len(_FACTORIES)
 
-    def __eq__(self, other):
+    def __eq__(self, other: object) -> bool:
         return isinstance(other, Sequence) and tuple(self) == tuple(other)
 
-    def __hash__(self):
+    def __hash__(self) -> int:
         return hash(tuple(self))
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return repr(tuple(self))
 
 
@@ -37,7 +83,7 @@ class _Names(Sequence):
 VI_SOLVERS = _Names()
 
 
-def register(name, factory):
+def register(name: str, factory: Factory) -> Factory:
     """Make ``factory(K, cdofs, lb, *, symmetric_positive, linear, options, factor_matrix,
     prefix)`` the step solver ``name``; returns ``factory``."""
     if name in _FACTORIES:
@@ -46,8 +92,9 @@ def register(name, factory):
     return factory
 
 
-def make_vi_solver(name, K, cdofs, lb, symmetric_positive=True, linear="auto", options=None, factor_matrix=None,
-                   prefix=None):
+def make_vi_solver(name: str, K: PETSc.Mat, cdofs: npt.ArrayLike, lb: npt.ArrayLike, symmetric_positive: bool = True,
+                   linear: str = "auto", options: Optional[Mapping[str, Any]] = None,
+                   factor_matrix: Optional[PETSc.Mat] = None, prefix: Optional[str] = None) -> StepSolver:
     """Build the step solver ``name`` (one of :data:`VI_SOLVERS`).
 
     ``factor_matrix``: a sparser augmented matrix to factorise instead of K (semi-smooth
@@ -61,14 +108,18 @@ def make_vi_solver(name, K, cdofs, lb, symmetric_positive=True, linear="auto", o
                             factor_matrix=factor_matrix, prefix=prefix)
 
 
-def _semismooth_newton(K, cdofs, lb, *, symmetric_positive, linear, options, factor_matrix, prefix):
+def _semismooth_newton(K: PETSc.Mat, cdofs: npt.ArrayLike, lb: npt.ArrayLike, *, symmetric_positive: bool,
+                       linear: str, options: Optional[Mapping[str, Any]], factor_matrix: Optional[PETSc.Mat],
+                       prefix: Optional[str]) -> SemismoothNewton:
     return SemismoothNewton(K, cdofs, lb, symmetric_positive, linear, prefix=prefix, options=options,
                             factor_matrix=factor_matrix)
 
 
-def _snes_vi(snes_type):
+def _snes_vi(snes_type: str) -> Factory:
     """The factory of :class:`SnesVI` with SNES type ``snes_type`` (no linear strategy)."""
-    def factory(K, cdofs, lb, *, symmetric_positive, linear, options, factor_matrix, prefix):
+    def factory(K: PETSc.Mat, cdofs: npt.ArrayLike, lb: npt.ArrayLike, *, symmetric_positive: bool, linear: str,
+                options: Optional[Mapping[str, Any]], factor_matrix: Optional[PETSc.Mat],
+                prefix: Optional[str]) -> SnesVI:
         return SnesVI(K, cdofs, lb, symmetric_positive, snes_type=snes_type, prefix=prefix, options=options)
     return factory
 

@@ -12,10 +12,14 @@ are K restricted to the inactive set, solved by one of :data:`LINEAR_STRATEGIES`
 loop runs as a PETSc SNES of type python under the solver's own options prefix, so SNES
 monitors, options and converged reasons apply.
 """
+from collections.abc import Mapping
+from typing import Any, Optional
+
 from mpi4py import MPI
 from petsc4py import PETSc
 
 import numpy as np
+import numpy.typing as npt
 
 from sdm_dolfinx.solvers.active_set import LINEAR_STRATEGIES, InactiveSetSolver, choose_strategy
 from sdm_dolfinx.solvers.base import MurtyRule, VIError
@@ -62,8 +66,9 @@ class SemismoothNewton:
         max_it: Newton iterations before giving up.
     """
 
-    def __init__(self, K, cdofs, lb, symmetric_positive=True, linear="auto", prefix=None,
-                 options=None, factor_matrix=None, rtol=1e-10, max_it=500):
+    def __init__(self, K: PETSc.Mat, cdofs: npt.ArrayLike, lb: npt.ArrayLike, symmetric_positive: bool = True,
+                 linear: str = "auto", prefix: Optional[str] = None, options: Optional[Mapping[str, Any]] = None,
+                 factor_matrix: Optional[PETSc.Mat] = None, rtol: float = 1e-10, max_it: int = 500) -> None:
         if linear not in LINEAR_STRATEGIES:
             raise ValueError(f"unknown linear strategy {linear!r}; choose one of {', '.join(LINEAR_STRATEGIES)}")
         self.K, self.comm = K, K.getComm().tompi4py()

@@ -1,9 +1,13 @@
 """PETSc SNES ``vinewtonrsls`` (or ``vinewtonssls``) on the step LCP, for comparison with the
 semi-smooth Newton (:mod:`sdm_dolfinx.solvers.semismooth`)."""
+from collections.abc import Mapping
+from typing import Any, Optional
+
 from mpi4py import MPI
 from petsc4py import PETSc
 
 import numpy as np
+import numpy.typing as npt
 
 from sdm_dolfinx.solvers.base import VIError
 from sdm_dolfinx.solvers.factorisation import MUMPS_ICNTL14
@@ -32,8 +36,9 @@ class SnesVI:
     ``-sdm_ksp_*``, ``-sdm_pc_*`` apply).
     """
 
-    def __init__(self, K, cdofs, lb, symmetric_positive=True, snes_type="vinewtonrsls", prefix=None,
-                 options=None, rtol=1e-10, max_it=60):
+    def __init__(self, K: PETSc.Mat, cdofs: npt.ArrayLike, lb: npt.ArrayLike, symmetric_positive: bool = True,
+                 snes_type: str = "vinewtonrsls", prefix: Optional[str] = None,
+                 options: Optional[Mapping[str, Any]] = None, rtol: float = 1e-10, max_it: int = 60) -> None:
         self.K, self.comm = K, K.getComm().tompi4py()
         self.cdofs = np.asarray(cdofs, dtype=np.int32)
         self.lb = np.asarray(lb)

@@ -380,3 +380,14 @@ def test_unknown_extra_column_is_refused_in_one_line():
     p = membrane.problem(N=2)
     with pytest.raises(ProblemInputError, match=r"unknown extra_columns 'momentum_z'; choose among contact_force"):
         dataclasses.replace(p, extra_columns=("contact_force", "momentum_z"))
+
+
+@pytest.mark.parametrize("time", [5.0, np.float64(0.0)])
+def test_time_that_is_not_a_constant_is_refused(time):
+    """``time`` must be a scalar fem.Constant that the run sets; a bare number has no ``value``
+    to set (it was accepted: np.shape(None) is () like a scalar's)."""
+    import dataclasses
+    p = membrane.problem(N=2)
+    with pytest.raises(ProblemInputError,
+                       match=r"time must be a scalar fem.Constant used by l\(w\) \(got (float|float64)\)"):
+        dataclasses.replace(p, time=time)

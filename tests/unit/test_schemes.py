@@ -66,6 +66,23 @@ def test_register_takes_only_schemes(clean_schemes):
     assert schemes.get("test-scheme") is s and "test-scheme" in schemes.names()
 
 
+def test_register_refuses_a_scheme_without_a_name(clean_schemes):
+    """A subclass that forgot ``name`` would be registered under None, and every later message
+    listing the schemes (", ".join of the names) would fail."""
+    class Nameless(Scheme):
+        factor, constrained = 1.0, "U^n"
+    with pytest.raises(TypeError, match="a Scheme with a name"):
+        schemes.register(Nameless())
+    assert None not in schemes.names()
+
+
+def test_a_scheme_without_factor_must_give_its_coefficients():
+    class NoFactor(Scheme):
+        name, constrained = "no-factor", "U^n"
+    with pytest.raises(NotImplementedError, match="scheme 'no-factor' has no factor: it must define coefficients"):
+        NoFactor().coefficients(0.1)
+
+
 # ------------------------------------------------------------------------------ formulas
 @pytest.fixture
 def state():
