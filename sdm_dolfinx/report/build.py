@@ -13,6 +13,7 @@ from sdm_dolfinx.mpiutil import atomic_write_text, json_text
 from sdm_dolfinx.paper import disc_figures, membrane_figures as figures, numbers, pictures_3d as pictures, table2
 from sdm_dolfinx.paper.design import BE_PAIRS, MEMBRANE_PAIRS
 from sdm_dolfinx.report import comparison_entry as compare_report, hertz_entry as hertz_report
+from sdm_dolfinx.report import rod_contact_entry as rod_report
 from sdm_dolfinx.report import table2_entry as table2_report
 from sdm_dolfinx.study.runs import duration, read_run_info
 from sdm_dolfinx.study.entry import Verdict
@@ -86,6 +87,7 @@ def make_report(study, runs_dir, out, records, comm=COMM, say=print, meta=None):
     conv = table2.convergence(paper, t2_errors)
     checks = numbers.energy_checks(paper, runs_dir, comm)
     comparison = compare_report.entry(study, runs_dir, out, comm, say)     # collective runs
+    rod = rod_report.entry(study, runs_dir, out, comm, say)                # collective runs
     ball = hertz_report.entries(study, runs_dir, out, comm, say)           # collective runs
     if comm.rank == 0:
         entries.append(pictures.picture_membrane(paper, runs_dir, out))
@@ -107,6 +109,7 @@ def make_report(study, runs_dir, out, records, comm=COMM, say=print, meta=None):
                     *friction_impact.impact_entries(study.friction, runs_dir, out)]
         if comparison is not None:
             entries.append(comparison)
+        entries.append(rod)
         entries += ball
         meta = dict(meta or {}, runs_dir=runs_dir)
         meta["runs_total"] = sum((read_run_info(runs_dir / r.name) or {}).get("wall_time") or 0.0

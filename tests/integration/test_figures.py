@@ -20,10 +20,11 @@ PNGS = ["fig01_membrane_3d.png", "fig02_P1plus-P0_mp.png", "fig03_P1-P0_mp.png",
         "fig09_P1-P0_be_meshes.png", "fig10_h_dt_together.png", "fig11_energy_error_vs_dt_over_h.png",
         "fig13_disc_mesh.png", "fig14_disc_P2-P2.png", "fig15_disc_P2-P1.png", "fig16_disc_convergence.png",
         "disc_deformed_3d.png", "friction_incline.png", "friction_block.png", "friction_impact_stress_A.png",
-        "friction_impact_zones.png", "ball_deformed_3d.png", "hertz/hertz_force.png", "hertz/hertz_pressure.png"]
+        "friction_impact_zones.png", "ball_deformed_3d.png", "hertz/hertz_force.png", "hertz/hertz_pressure.png",
+        "rod_contact/rod_contact.png"]
 KEYS = ["fig01", "fig02", "fig03", "fig04", "fig05", "fig06", "fig07", "fig08", "fig09", "fig10", "fig11",
         "fig13", "fig14", "fig15", "fig16", "table2", "disc3d", "friction_incline", "friction_block",
-        "friction_impact_stress", "friction_impact_zones", "compare-rod1d", "hertz", "ball3d"]
+        "friction_impact_stress", "friction_impact_zones", "compare-rod1d", "rod_contact", "hertz", "ball3d"]
 
 
 def _is_real_plot(path):
