@@ -157,6 +157,48 @@ class FrictionalNewton:
         """Solves with the factorisation so far (one per step, one per cached column)."""
         return self.system.its
 
+    @property
+    def column_ids(self):
+        """Global ids of the contact dofs whose columns K^-1 e_j the solver caches: entry k is
+        component k // m (0 normal, then the tangential ones) of vertex k % m (the order of ``ndofs``)."""
+        return self.system.gc
+
+    def cache_columns(self, gids):
+        """Solve and cache the columns K^-1 e_g of ``gids`` not cached yet, as a step does
+        (collective, the same list on every rank). A column's last bits depend on the batch it
+        was solved in (one multiple-right-hand-side solve), so a restart replays a run's batches
+        in their order."""
+        self.system.cols.ensure(np.asarray(gids, dtype=np.int64))
+
+    #: the per-vertex entries of :meth:`state`
+    STATE = ("next_active", "next_stick", "next_sigma", "lam", "lam_t", "active", "stick", "slip")
+
+    def state(self):
+        """What the next step depends on besides x and b, for a checkpoint: (started, starts,
+        per_vertex). ``started``: a step has been solved (else the first step derives its sets
+        from x); ``starts``: solves of right-hand sides so far (the counter of
+        :attr:`total_linear_its` besides the cached columns); ``per_vertex``: :data:`STATE` ->
+        this rank's values (m rows, in the order of ``ndofs``, as floats): the sets and slip
+        directions the next step starts from (3-D: z, see :mod:`.friction_cone`), the last
+        multipliers (the 3-D linearisation and the Coulomb fixed point start from them) and the
+        last step's sets."""
+        started = self._sets is not None
+        m = self.m
+        sets = self._sets if started else (np.zeros(m, dtype=bool), np.zeros(m, dtype=bool), self._initial_sigma())
+        values = (*sets, self.lam, self.lam_t, self.active, self.stick, self.slip)
+        return started, self.system.starts, {k: np.asarray(v, dtype=float).reshape(m, int(np.prod(np.shape(v)[1:])))
+                                             for k, v in zip(self.STATE, values)}
+
+    def set_state(self, started, starts, per_vertex):
+        """Restore a :meth:`state` (this rank's rows, in the order of ``ndofs``)."""
+        v = {k: np.asarray(per_vertex[k], dtype=float) for k in self.STATE}
+        flag = {k: v[k].reshape(self.m).astype(bool) for k in ("next_active", "next_stick", "active", "stick", "slip")}
+        sigma = v["next_sigma"].reshape(self._initial_sigma().shape)
+        self._sets = (flag["next_active"], flag["next_stick"], sigma) if started else None
+        self.lam, self.lam_t = v["lam"].reshape(self.m), v["lam_t"].reshape(self.tdofs.shape)
+        self.active, self.stick, self.slip = flag["active"], flag["stick"], flag["slip"]
+        self.system.starts = int(starts)
+
     def solve(self, b, x, xref_t):
         """Solve the step for right-hand side b; x holds the initial guess and the result.
 

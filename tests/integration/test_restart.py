@@ -20,7 +20,8 @@ COMM = MPI.COMM_WORLD
 
 
 # A restarted run repeats the same operations (U, V, the active set and the step solver's
-# cached Schur columns are restored): serially it is bit-identical, in contact too. On 2
+# cached Schur columns are restored; with friction also the frictional solver's sets,
+# multipliers and counters): serially it is bit-identical, in contact too. On 2
 # ranks the restarted process partitions the mesh anew and the parallel factorisation (MUMPS)
 # is not bit-reproducible from run to run (measured up to 1.6e-11 relative on lambda_probe
 # between identical runs), so the check allows 1e-9 there.
@@ -283,3 +284,78 @@ def test_restart_keeps_autos_memory_choice(mpi_tmp_path, monkeypatch):
     if COMM.rank == 0:
         a, b = read_csv(mpi_tmp_path / "ref" / "timeseries.csv"), read_csv(mpi_tmp_path / "cut" / "timeseries.csv")
         assert a.shape == b.shape and np.allclose(a, b, rtol=RTOL, atol=RTOL * np.abs(a).max(axis=0))
+
+
+def _assert_same_frictional_run(ref, cut):
+    """``cut`` (interrupted, restarted) holds the uninterrupted run ``ref``'s results: serially bit
+    for bit (the CSV as text, run.json's iteration counters, every XDMF field at every time, U and V
+    of every state.h5 row); on several ranks the CSV to round-off (RTOL, as above)."""
+    a, b = read_csv(ref / "timeseries.csv"), read_csv(cut / "timeseries.csv")
+    assert a.shape == b.shape and np.array_equal(a[:, 0], b[:, 0])
+    if COMM.size > 1:
+        from test_faults_common import column_scale
+        assert np.allclose(a, b, rtol=RTOL, atol=RTOL * column_scale(a, ref / "timeseries.csv"))
+        return
+    names = (ref / "timeseries.csv").read_text().splitlines()[0].split(",")
+    differ = [(c, float(np.abs(a[:, k] - b[:, k]).max())) for k, c in enumerate(names)
+              if not np.array_equal(a[:, k], b[:, k])]
+    assert not differ, differ
+    assert (ref / "timeseries.csv").read_text() == (cut / "timeseries.csv").read_text()
+    ia, ib = (json.loads((d / "run.json").read_text()) for d in (ref, cut))
+    assert (ia["newton_its_total"], ia["linear_its_total"]) == (ib["newton_its_total"], ib["linear_its_total"])
+    from sdm_dolfinx.io.xdmf_reader import read_xdmf
+    sa, sb = read_xdmf(ref), read_xdmf(cut)
+    assert sa.times == sb.times and sa.fields == sb.fields
+    for name in sa.fields:
+        for t in sa.times:
+            assert np.array_equal(sa.field(name, t), sb.field(name, t)), (name, t)
+    import h5py
+    with h5py.File(ref / "state.h5", "r") as x, h5py.File(cut / "state.h5", "r") as y:
+        assert np.array_equal(x["step"][:], y["step"][:])
+        for key in ("U", "V"):
+            assert np.array_equal(x[key][:], y[key][:]), key
+
+
+#: the block sliding to a stop (block_friction_*.toml): it slides until ~34 ms, then sticks
+BLOCK_FRICTION = {"coulomb": {"mu": 0.3}, "tresca": {"tresca_threshold": 0.02943}}
+
+
+@pytest.mark.parametrize("stop,regime", [(150, "sliding"), (384, "sticking")])
+@pytest.mark.parametrize("law", sorted(BLOCK_FRICTION))
+def test_frictional_restart_is_bit_identical_in_2d(law, stop, regime, mpi_tmp_path):
+    """The block with friction, stopped while every contact vertex slides (step 150) or sticks (step 384,
+    after its stop; vertices slip again at later steps) and restarted: the frictional solver's state
+    (the next step's stick/slip sets, its multipliers, its cached columns K^-1 e_j and its counters)
+    is restored, so serially the continued run is bit for bit the uninterrupted one, Newton iteration
+    counts included. Without it the first step after the restart took 2 or 3 Newton iterations
+    instead of 1 and the sticking restarts drifted (Coulomb: energy 8e-12, elastic energy 1e-8)."""
+    from sdm_dolfinx.problems import block
+    kw = dict(pair="P2/P1", dt=1e-4, T=0.04, write_every=16, friction=law, friction_options=BLOCK_FRICTION[law])
+    ref = simulate(block.problem(), out=mpi_tmp_path / "ref", **kw)
+    ts = ref.timeseries
+    assert ts["n_active"][stop] == 11
+    assert ts["n_slip"][stop] == 11 if regime == "sliding" else ts["n_stick"][stop] == 11
+    assert ts["n_slip"][stop + 1:].max() > 0                       # vertices slip after the restart
+    _interrupted_then_restarted(block.problem, mpi_tmp_path / "cut", stop, **kw)
+    if COMM.rank == 0:
+        _assert_same_frictional_run(mpi_tmp_path / "ref", mpi_tmp_path / "cut")
+
+
+@pytest.mark.parametrize("mu,regime", [(0.05, "sliding"), (1.0, "sticking")])
+def test_frictional_restart_is_bit_identical_in_3d(mu, regime, mpi_tmp_path):
+    """The ball's oblique impact (level 1, v = vt = 100 mm/s) with Coulomb friction, stopped in contact
+    at step 15 while its 8 contact vertices all slide (mu = 0.05, gross slip) or all stick (mu = 1),
+    then restarted: serially bit for bit the uninterrupted run (the 3-D solver also starts each step's
+    linearisation from the last multipliers). Without the restored state the restarts differed by
+    up to 1.7e-12 (sliding) and 1e-8 (sticking, the dissipated energy) relative."""
+    from sdm_dolfinx.problems import ball
+    stop = 15
+    kw = dict(pair="P2/P1", dt=4e-5, T=24 * 4e-5, write_every=4, friction="coulomb", friction_options={"mu": mu})
+    make = lambda: ball.problem(level=1, v=100.0, vt=100.0)              # noqa: E731
+    ref = simulate(make(), out=mpi_tmp_path / "ref", **kw)
+    ts = ref.timeseries
+    assert ts["n_active"][stop] >= 8 and ts["n_active"][-1] > 0
+    assert ts["n_slip"][stop] == ts["n_active"][stop] if regime == "sliding" else ts["n_slip"][stop] == 0
+    _interrupted_then_restarted(make, mpi_tmp_path / "cut", stop, **kw)
+    if COMM.rank == 0:
+        _assert_same_frictional_run(mpi_tmp_path / "ref", mpi_tmp_path / "cut")
