@@ -20,15 +20,22 @@ import json
 import os
 import xml.etree.ElementTree as ET
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-if __package__:            # imported as sdm_dolfinx.io.xdmf_reader
+
+def _errors_by_path():
+    """sdm_dolfinx/errors.py loaded by path (it imports nothing)."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("sdm_render_errors", Path(__file__).resolve().parents[1] / "errors.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+if TYPE_CHECKING or __package__:      # imported as sdm_dolfinx.io.xdmf_reader
     from sdm_dolfinx.errors import SdmError
-else:                      # loaded by path: errors.py imports nothing, load it by path too
-    import importlib.util as _util
-    _spec = _util.spec_from_file_location("sdm_render_errors", Path(__file__).resolve().parents[1] / "errors.py")
-    _errors = _util.module_from_spec(_spec)
-    _spec.loader.exec_module(_errors)
-    SdmError = _errors.SdmError
+else:                                 # loaded by path: errors.py by path too
+    SdmError = _errors_by_path().SdmError
 
 
 class RenderError(SdmError, ValueError):

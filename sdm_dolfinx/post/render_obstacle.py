@@ -26,6 +26,7 @@ from sdm_dolfinx import compat
 from sdm_dolfinx.io import PostprocessError
 from sdm_dolfinx.method.discretisation import vertex_coordinates
 from sdm_dolfinx.post.rebuild_run import rebuild_problem
+from sdm_dolfinx.problems.base import one_line
 
 #: obstacle points whose coordinate x_c (or bound) varies by less than this, relative to the
 #: body's size (or to the largest bound), form a flat obstacle
@@ -52,6 +53,8 @@ def declared_obstacle(run):
         problem = rebuild_problem(run, MPI.COMM_SELF)
     except PostprocessError as e:
         return {"unknown": str(e)}
+    except Exception as e:          # a user's build: any error is said in one line, the picture drawn without it
+        return {"unknown": f"its problem could not be built again ({one_line(e)})"}
     return _evaluate(problem, run.get("mesh", {}).get("vertices"))
 
 

@@ -4,7 +4,7 @@ body's surface deformed and coloured, each with the obstacle its problem declare
 Imports only the standard library at load time (numpy and pyvista inside the functions): it runs
 in the child process of :mod:`.render`, loaded by path, and takes a
 :class:`~sdm_dolfinx.io.xdmf_reader.Series`, the obstacle (:mod:`.render_obstacle`'s plain data)
-and a ``look`` (:func:`sdm_dolfinx.post.render.look`: the colour, its title with its unit, the
+and a ``look`` (:class:`sdm_dolfinx.post.render.Look`: the colour, its title with its unit, the
 picture's title).
 """
 import os
@@ -37,7 +37,7 @@ def _grid(series, points=None):
 
 
 def _text(plotter, text, font, panels=1, **kwargs):
-    """``text`` in black, wrapped at "; " to the panel's width (VTK drops a corner text that does
+    """``text`` in black, wrapped at spaces to the panel's width (VTK drops a corner text that does
     not fit rather than cutting it)."""
     import textwrap
     width = max(20, int(plotter.window_size[0] / panels / (0.62 * font)))
