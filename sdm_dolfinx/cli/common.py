@@ -118,3 +118,11 @@ def check_writable(path, what):
         d = d.parent
     if not os.access(d, os.W_OK | os.X_OK):
         raise UsageError(f"cannot write {what} {path} ({d} is not writable)")
+    # os.access says yes to root in a read-only (immutable, read-only mounted) folder: try a
+    # temporary file there (removed at once)
+    import tempfile
+    try:
+        with tempfile.TemporaryFile(dir=d):
+            pass
+    except OSError as e:
+        raise UsageError(f"cannot write {what} {path} ({d}: {e.strerror or e})") from None

@@ -7,17 +7,54 @@
   and "Warp By Scalar" + "colour by contact_stress" fails), into one temporal grid whose
   every time step carries all fields. Same HDF5 file, only the XML differs.
 
+* :meth:`Series.surface_triangles` and :meth:`Series.linear_cells` split the cells drawn
+  (triangles, or the boundary faces of tetrahedra) and the cells whose strain is computed
+  into straight triangles and tetrahedra (quadratic ones into 4 and 8).
+
 This module imports only the standard library at load time (numpy and h5py inside the
-functions) and nothing of the package, so a ParaView ``pvpython`` script and the pyvista
-child process of :mod:`.render` can load it by path. Call it on one rank (Debian's h5py is serial).
+functions) and nothing of the package but :mod:`sdm_dolfinx.errors` (by path when it is loaded
+by path), so a ParaView ``pvpython`` script and the pyvista child process of :mod:`sdm_dolfinx.post.render`
+can load it by path. Call it on one rank (Debian's h5py is serial).
 """
 import json
 import os
 import xml.etree.ElementTree as ET
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+
+def _errors_by_path():
+    """sdm_dolfinx/errors.py loaded by path (it imports nothing)."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("sdm_render_errors", Path(__file__).resolve().parents[1] / "errors.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+if TYPE_CHECKING or __package__:      # imported as sdm_dolfinx.io.xdmf_reader
+    from sdm_dolfinx.errors import SdmError
+else:                                 # loaded by path: errors.py by path too
+    SdmError = _errors_by_path().SdmError
+
+
+class RenderError(SdmError, ValueError):
+    """A run (or a request) that cannot be drawn: said in one line, nothing written."""
+
 
 #: the four linear triangles of a quadratic (VTK-ordered) triangle, for drawing and gradients
 _SUB_TRIANGLES = ((0, 3, 5), (3, 1, 4), (5, 4, 2), (3, 4, 5))
+#: the eight linear tetrahedra of a quadratic (VTK-ordered) tetrahedron: its four corners and the
+#: inner octahedron cut along the diagonal 4-9 (the midpoints of the edges 0-1 and 2-3)
+_SUB_TETRAHEDRA = ((0, 4, 6, 7), (4, 1, 5, 8), (6, 5, 2, 9), (7, 8, 9, 3),
+                   (4, 5, 6, 9), (4, 6, 7, 9), (4, 7, 8, 9), (4, 8, 5, 9))
+#: a tetrahedron's faces (the face opposite each vertex) and, in VTK's quadratic tetrahedron,
+#: the mid-edge node of each edge
+_TET_FACES = ((1, 2, 3), (0, 2, 3), (0, 1, 3), (0, 1, 2))
+_TET_EDGE_NODE = {(0, 1): 4, (1, 2): 5, (0, 2): 6, (0, 3): 7, (1, 3): 8, (2, 3): 9}
+#: the Xdmf topologies drawn here -> (topological dimension, corners per cell)
+CELL_TYPES = {"PolyLine": (1, 2), "Edge_3": (1, 2), "Triangle": (2, 3), "Triangle_6": (2, 3),
+              "Tetrahedron": (3, 4), "Tetrahedron_10": (3, 4)}
 
 
 def merged_path(xdmf):
@@ -94,14 +131,15 @@ class Series:
     Attributes:
         points: (n, 3) node coordinates.
         cells: (m, k) node indices per cell, VTK ordering.
-        cell_type: the Xdmf topology name (``"Triangle"``, ``"Triangle_6"``, ...).
+        cell_type: the Xdmf topology name (``"Triangle"``, ``"Tetrahedron_10"``, ...).
+        gdim: the mesh's geometric dimension (2 or 3 coordinates stored per node; 1-D meshes too).
         times: sorted list of output times.
         run: the run's ``run.json`` (empty dict when there is none).
     """
 
-    def __init__(self, points, cells, cell_type, times, datasets, h5path, run, xdmf=None):
+    def __init__(self, points, cells, cell_type, times, datasets, h5path, run, xdmf=None, gdim=None):
         self.points, self.cells, self.cell_type, self.times = points, cells, cell_type, times
-        self.xdmf = xdmf
+        self.xdmf, self.gdim = xdmf, points.shape[1] if gdim is None else gdim
         self._datasets, self._h5path, self.run = datasets, h5path, run
 
     @property
@@ -109,10 +147,23 @@ class Series:
         """Names of the fields stored at the output times."""
         return sorted(self._datasets)
 
+    @property
+    def tdim(self):
+        """The cells' topological dimension (1, 2 or 3)."""
+        return self._cell_info()[0]
+
+    def _cell_info(self):
+        if self.cell_type not in CELL_TYPES:
+            raise RenderError(f"{self.xdmf}: cannot draw {self.cell_type} cells (only triangles and tetrahedra, "
+                              f"linear or quadratic): open it in ParaView")
+        return CELL_TYPES[self.cell_type]
+
     def field(self, name, time):
         """The nodal values of ``name`` at the output time nearest to ``time``, shape (n,) or (n, k)."""
         import h5py
         import numpy as np
+        if name not in self._datasets:
+            raise RenderError(f"{self.xdmf} has no field {name!r} (its fields: {', '.join(self.fields) or 'none'})")
         k = self.index(time)
         with h5py.File(self._h5path, "r") as h5:
             a = np.array(h5[self._datasets[name][k]])
@@ -136,28 +187,87 @@ class Series:
     def vertex_mask(self):
         """True at the nodes that are cell vertices (not the midside nodes of quadratic cells)."""
         import numpy as np
-        corners = {"PolyLine": 2, "Edge_3": 2, "Tetrahedron": 4, "Tetrahedron_10": 4}.get(self.cell_type, 3)
         mask = np.zeros(len(self.points), dtype=bool)
-        mask[self.cells[:, :corners].ravel()] = True
+        mask[self.cells[:, :self._cell_info()[1]].ravel()] = True
         return mask
 
     def linear_triangles(self):
-        """(m', 3) straight triangles covering the mesh (quadratic ones split in four)."""
+        """(m', 3) straight triangles covering a 2-D mesh (quadratic ones split in four)."""
         import numpy as np
         if self.cell_type == "Triangle":
             return self.cells
         if self.cell_type == "Triangle_6":
             return np.concatenate([self.cells[:, list(s)] for s in _SUB_TRIANGLES])
-        raise ValueError(f"cannot draw {self.cell_type} cells")
+        raise RenderError(f"{self.xdmf}: {self.cell_type} cells are not triangles (see surface_triangles)")
+
+    def linear_cells(self):
+        """(m', 3) straight triangles or (m', 4) straight tetrahedra covering the mesh (quadratic
+        cells split in four or eight): the displacement is taken linear on each (for strains)."""
+        import numpy as np
+        if self.tdim == 2:
+            return self.linear_triangles()
+        if self.cell_type == "Tetrahedron":
+            return self.cells
+        if self.cell_type == "Tetrahedron_10":
+            return np.concatenate([self.cells[:, list(s)] for s in _SUB_TETRAHEDRA])
+        raise RenderError(f"{self.xdmf}: no strain on {self.cell_type} cells")
+
+    def boundary_faces(self):
+        """(f, 3) or (f, 6) the faces of a tetrahedral mesh that belong to one cell only (its
+        surface), as triangles (quadratic: corners, then the mid-edge nodes of 01, 12, 20)."""
+        import numpy as np
+        faces = np.concatenate([self.cells[:, list(f)] for f in _TET_FACES])
+        key = np.sort(faces, axis=1)
+        _, first, count = np.unique(key, axis=0, return_index=True, return_counts=True)
+        outer = np.sort(first[count == 1])
+        if self.cell_type == "Tetrahedron":
+            return faces[outer]
+        cell, face = outer % len(self.cells), outer // len(self.cells)
+        local = np.array(_TET_FACES)[face]                                     # (f, 3) local corners
+        mids = [np.array([_TET_EDGE_NODE[tuple(sorted((a, b)))] for a, b in zip(local[:, i], local[:, (i + 1) % 3])])
+                for i in range(3)]
+        return np.column_stack([self.cells[cell, local[:, i]] for i in range(3)]
+                               + [self.cells[cell, m] for m in mids])
+
+    def surface_triangles(self):
+        """(m', 3) straight triangles that draw the mesh: the triangles of a 2-D mesh, or the
+        boundary surface of a 3-D one (quadratic faces split in four)."""
+        import numpy as np
+        if self.tdim == 2:
+            return self.linear_triangles()
+        if self.tdim != 3:
+            raise RenderError(f"{self.xdmf}: a 1-D mesh has no surface to draw")
+        faces = self.boundary_faces()
+        if faces.shape[1] == 3:
+            return faces
+        return np.concatenate([faces[:, list(s)] for s in _SUB_TRIANGLES])
 
     def lame(self):
-        """(lambda, mu) from run.json's parameters (0 and 1 when absent)."""
+        """(lambda, mu) from run.json's parameters ``lame_lambda`` and ``lame_mu``, or None when the
+        problem does not declare both (its stress is then not known here)."""
         p = self.parameters
-        return float(p.get("lame_lambda", 0.0)), float(p.get("lame_mu", 1.0))
+        try:
+            lame = float(p["lame_lambda"]), float(p["lame_mu"])
+        except (KeyError, TypeError, ValueError):
+            return None
+        return lame
 
     def von_mises(self, displacement):
-        """:func:`von_mises` of ``displacement`` with this run's Lamé parameters."""
-        return von_mises(self, displacement, *self.lame())
+        """:func:`von_mises` of ``displacement`` with this run's Lamé parameters (see :meth:`lame`)."""
+        lame = self.lame()
+        if lame is None:
+            raise RenderError(f"{self.xdmf}: run.json's problem parameters have no lame_lambda and lame_mu")
+        return von_mises(self, displacement, *lame)
+
+    def nodal_von_mises(self, displacement):
+        """The von Mises stress averaged to the nodes from the cells around each (for smooth pictures)."""
+        import numpy as np
+        cells = self.linear_cells()
+        vm = self.von_mises(displacement)
+        total, count = np.zeros(len(self.points)), np.zeros(len(self.points))
+        np.add.at(total, cells.ravel(), np.repeat(vm, cells.shape[1]))
+        np.add.at(count, cells.ravel(), 1.0)
+        return total / np.maximum(count, 1.0)
 
     def stress_range(self, times):
         """[0, the largest von Mises stress over ``times``] (a common colour scale; [0, 1] when 0)."""
@@ -171,12 +281,22 @@ def read_xdmf(path):
 
     Args:
         path: the XDMF file or the run's folder.
+
+    Raises:
+        RenderError: a file that is not such an XDMF, or whose HDF5 data cannot be read.
     """
-    import h5py
-    import numpy as np
     path = Path(path)
     if path.is_dir():
         path = path / "solution.xdmf"
+    try:
+        return _read_xdmf(path)
+    except (OSError, ET.ParseError, AttributeError, KeyError, IndexError, ValueError) as e:
+        raise RenderError(f"cannot read {path}: {getattr(e, 'strerror', None) or e}") from None
+
+
+def _read_xdmf(path):
+    import h5py
+    import numpy as np
     root = ET.parse(path).getroot()
     top = root.find(".//Topology")
     geo = root.find(".//Geometry")
@@ -200,26 +320,31 @@ def read_xdmf(path):
     points[:, :x.shape[1]] = x
     run_json = path.parent / "run.json"
     run = json.loads(run_json.read_text()) if run_json.exists() else {}
-    return Series(points, cells, top.get("TopologyType"), times, datasets, h5path, run, path.resolve())
+    return Series(points, cells, top.get("TopologyType"), times, datasets, h5path, run, path.resolve(),
+                  gdim=x.shape[1])
 
 
 def von_mises(series, displacement, lame_lambda, lame_mu):
-    """Plane-strain von Mises stress of a vertex displacement, one value per linear triangle.
+    """The von Mises stress of a nodal displacement, one value per cell of
+    :meth:`Series.linear_cells` (on which the displacement is linear, so the strain constant).
 
-    The displacement is piecewise linear on :meth:`Series.linear_triangles`, so the strain is
-    constant on each of them; sigma_zz = lambda tr(eps) (plane strain).
+    2-D: plane strain, sigma_zz = lambda tr(eps); 3-D: the full stress.
     """
     import numpy as np
-    tri = series.linear_triangles()
-    x = series.points[:, :2][tri]                 # (m, 3, 2)
-    u = displacement[:, :2][tri]
-    d = np.stack([x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]], axis=1)       # rows: edge vectors
-    du = np.stack([u[:, 1] - u[:, 0], u[:, 2] - u[:, 0]], axis=1)
-    grad = np.linalg.solve(d, du).transpose(0, 2, 1)                     # grad[i, j] = du_i/dx_j
+    cells = series.linear_cells()
+    d = cells.shape[1] - 1                         # 2 (triangles) or 3 (tetrahedra)
+    x = series.points[:, :d][cells]                # (m, d + 1, d)
+    u = displacement[:, :d][cells]
+    edges = x[:, 1:] - x[:, :1]                    # rows: edge vectors
+    du = u[:, 1:] - u[:, :1]
+    grad = np.linalg.solve(edges, du).transpose(0, 2, 1)                 # grad[i, j] = du_i/dx_j
     eps = 0.5 * (grad + grad.transpose(0, 2, 1))
-    tr = eps[:, 0, 0] + eps[:, 1, 1]
-    sxx = lame_lambda * tr + 2 * lame_mu * eps[:, 0, 0]
-    syy = lame_lambda * tr + 2 * lame_mu * eps[:, 1, 1]
-    sxy = 2 * lame_mu * eps[:, 0, 1]
-    szz = lame_lambda * tr
-    return np.sqrt(0.5 * ((sxx - syy) ** 2 + (syy - szz) ** 2 + (szz - sxx) ** 2) + 3 * sxy ** 2)
+    tr = np.trace(eps, axis1=1, axis2=2)
+    sigma = 2 * lame_mu * eps + lame_lambda * tr[:, None, None] * np.eye(d)
+    if d == 2:                                     # plane strain: the out-of-plane stress
+        full = np.zeros((len(cells), 3, 3))
+        full[:, :2, :2] = sigma
+        full[:, 2, 2] = lame_lambda * tr
+        sigma = full
+    dev = sigma - np.trace(sigma, axis1=1, axis2=2)[:, None, None] / 3.0 * np.eye(3)
+    return np.sqrt(1.5 * np.sum(dev * dev, axis=(1, 2)))

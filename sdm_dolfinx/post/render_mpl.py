@@ -2,7 +2,9 @@
 disc's curved P2 mesh over its foundation (the paper's Fig. 13, the demos).
 
 Imports nothing of the package and only the standard library at load time (numpy and
-matplotlib inside the functions): the fallbacks take a :class:`~sdm_dolfinx.io.xdmf_reader.Series`.
+matplotlib inside the functions): the fallbacks take a :class:`~sdm_dolfinx.io.xdmf_reader.Series`
+and :mod:`.render`'s ``Look`` (colour, title, obstacle). A 3-D body is drawn as its boundary
+surface's straight triangles (matplotlib has no hidden-surface removal: pyvista draws it better).
 """
 
 
@@ -55,55 +57,128 @@ def _mpl():
     return plt
 
 
-def mpl_draw(fig, series, t, scale, kind, clim=None):
+def _membrane(fig, series, t, scale, look, clim):
     import matplotlib.tri as mtri
     import numpy as np
-    tri = series.linear_triangles()
     u = series.field("displacement", t)
-    fig.clear()
-    if kind == "membrane":
-        ax = fig.add_subplot(projection="3d")
-        x, y = series.points[:, 0], series.points[:, 1]
-        tr = mtri.Triangulation(x, y, tri)
-        obstacle = float(series.parameters.get("obstacle", 0.0))
+    ax = fig.add_subplot(projection="3d")
+    x, y = series.points[:, 0], series.points[:, 1]
+    obstacle = look.obstacle
+    if obstacle.get("flat") is not None:
         xx, yy = np.meshgrid([x.min(), x.max()], [y.min(), y.max()])
-        ax.plot_surface(xx, yy, np.full_like(xx, scale * obstacle), color="0.7", alpha=0.6)
-        surf = ax.plot_trisurf(tr, scale * u, cmap="viridis", linewidth=0.2, edgecolor="0.3",
-                               vmin=None if clim is None else clim[0], vmax=None if clim is None else clim[1] * scale)
-        act = series.field("active", t) > 0.5
-        ax.scatter(x[act], y[act], scale * u[act], color="red", s=12)
-        ax.set_zlim(min(scale * obstacle, scale * u.min()) - 0.02, max(scale * u.max(), 0.1))
-        ax.set_title(f"t = {series.times[series.index(t)]:.3f} (vertical scale x{scale:g}; red: in contact)")
-        fig.colorbar(surf, ax=ax, shrink=0.6, label=f"{scale:g} x displacement")
-    else:
-        ax = fig.add_subplot()
-        xy = series.points[:, :2] + scale * u[:, :2]
-        vm = series.von_mises(u)
-        pc = ax.tripcolor(xy[:, 0], xy[:, 1], tri, facecolors=vm, cmap="inferno",
-                          vmin=0 if clim is None else clim[0], vmax=None if clim is None else clim[1])
-        ax.axhline(0.0, color="k") if series.problem_name != "plane_bar" else ax.axvline(0.0, color="k")
-        ax.set_aspect("equal")
-        ax.set_title(f"t = {series.times[series.index(t)]:.4g}")
-        fig.colorbar(pc, ax=ax, label="von Mises stress")
+        ax.plot_surface(xx, yy, np.full_like(xx, scale * obstacle["flat"]), color="0.7", alpha=0.6)
+    elif obstacle.get("points"):
+        p = np.asarray(obstacle["points"])
+        ax.plot_trisurf(mtri.Triangulation(p[:, 0], p[:, 1]), scale * p[:, 2], color="0.7", alpha=0.6)
+    surf = ax.plot_trisurf(mtri.Triangulation(x, y, series.linear_triangles()), scale * u, cmap="viridis",
+                           linewidth=0.2, edgecolor="0.3", vmin=scale * clim[0], vmax=scale * clim[1])
+    act = (series.field("active", t) > 0.5) & series.vertex_mask()
+    ax.scatter(x[act], y[act], scale * u[act], color="red", s=12)
+    low = scale * min(u.min(), obstacle["flat"] if obstacle.get("flat") is not None else u.min())
+    ax.set_zlim(low - 0.02, max(scale * u.max(), low + 0.1))
+    ax.set_title(look.title(t, int(act.sum()), "red"), fontsize=8)
+    bar = fig.colorbar(surf, ax=ax, shrink=0.6)
+    bar.set_label(look.colour_title.replace("\n", " ") + f", drawn x{scale:g}")
     return ax
 
 
-def picture_mpl(series, png, t, scale, kind):
+def _obstacle_2d(ax, obstacle, lo, hi):
+    import numpy as np
+    c = obstacle.get("component")
+    if c is None or not obstacle.get("points"):
+        return
+    if obstacle["flat"] is not None:
+        v, span = obstacle["flat"], float(np.max(hi - lo))
+        if c == 0:
+            ax.axvline(v, color="k", lw=1.5)
+            ax.axvspan(v - 0.05 * span, v, color="0.85", hatch="///", lw=0)
+        else:
+            ax.axhline(v, color="k", lw=1.5)
+            ax.axhspan(v - 0.05 * span, v, color="0.85", hatch="///", lw=0)
+        return
+    p = np.asarray(obstacle["points"])
+    p = p[np.argsort(p[:, 1 - c])]
+    ax.plot(p[:, 0], p[:, 1], color="0.5", lw=3)
+
+
+def _solid(fig, series, t, scale, look, clim):
+    import numpy as np
+    u = series.field("displacement", t)
+    xy = series.points[:, :2] + scale * u[:, :2]
+    ax = fig.add_subplot()
+    pc = ax.tripcolor(xy[:, 0], xy[:, 1], series.linear_triangles(), look.values(u), shading="gouraud",
+                      cmap="inferno", vmin=clim[0], vmax=clim[1])
+    act = (series.field("active", t) > 0.5) & series.vertex_mask()
+    ax.plot(xy[act, 0], xy[act, 1], "o", color="c", ms=4)
+    _obstacle_2d(ax, look.obstacle, xy.min(axis=0), xy.max(axis=0))
+    ax.set_aspect("equal")
+    ax.set_title(look.title(t, int(act.sum()), "cyan"), fontsize=8)
+    fig.colorbar(pc, ax=ax, label=look.colour_title.replace("\n", " "))
+    return ax
+
+
+def _solid3d(fig, series, t, scale, look, clim):
+    """The body's boundary surface (straight triangles) coloured by the mean of its nodes' values,
+    the obstacle as a grey plane or surface (matplotlib draws no hidden surfaces: a fallback)."""
+    import matplotlib.tri as mtri
+    import numpy as np
+    from matplotlib import cm, colors
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+    u = series.field("displacement", t)
+    x = series.points + scale * u
+    tri = series.surface_triangles()
+    norm = colors.Normalize(vmin=clim[0], vmax=clim[1])
+    ax = fig.add_subplot(projection="3d")
+    ax.add_collection3d(Poly3DCollection(x[tri], facecolors=cm.inferno(norm(look.values(u)[tri].mean(axis=1))),
+                                         edgecolors="0.4", linewidths=0.1))
+    lo, hi = x.min(axis=0), x.max(axis=0)
+    o, c = look.obstacle, look.obstacle.get("component")
+    if c is not None and o.get("points"):
+        axes = [k for k in range(3) if k != c]
+        if o["flat"] is not None:
+            mid, half = 0.5 * (lo + hi), 0.8 * (hi - lo)
+            corners = np.zeros((4, 3))
+            corners[:, c] = o["flat"]
+            corners[:, axes[0]] = mid[axes[0]] + half[axes[0]] * np.array([-1, 1, 1, -1])
+            corners[:, axes[1]] = mid[axes[1]] + half[axes[1]] * np.array([-1, -1, 1, 1])
+            ax.add_collection3d(Poly3DCollection([corners], facecolors="0.6", alpha=0.4))
+            lo, hi = np.minimum(lo, corners.min(axis=0)), np.maximum(hi, corners.max(axis=0))
+        else:
+            p = np.asarray(o["points"])
+            t_ = mtri.Triangulation(p[:, axes[0]], p[:, axes[1]]).triangles
+            ax.add_collection3d(Poly3DCollection(p[t_], facecolors="0.6", alpha=0.4))
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_zlim(lo[2], hi[2])
+    ax.set_box_aspect(np.maximum(hi - lo, 1e-3 * np.max(hi - lo)))
+    act = (series.field("active", t) > 0.5) & series.vertex_mask()
+    ax.scatter(*x[act].T, color="c", s=6)
+    ax.set_title(look.title(t, int(act.sum()), "cyan"), fontsize=8)
+    fig.colorbar(cm.ScalarMappable(norm=norm, cmap="inferno"), ax=ax, shrink=0.6,
+                 label=look.colour_title.replace("\n", " "))
+    return ax
+
+
+def mpl_draw(fig, series, t, scale, look, clim):
+    """One frame on ``fig`` (cleared first)."""
+    fig.clear()
+    draw = {"membrane": _membrane, "solid": _solid, "solid3d": _solid3d}[look.kind]
+    return draw(fig, series, t, scale, look, clim)
+
+
+def picture_mpl(series, png, t, scale, look):
     plt = _mpl()
     fig = plt.figure(figsize=(8, 6))
-    mpl_draw(fig, series, t, scale, kind)
-    fig.savefig(png, dpi=100)
+    mpl_draw(fig, series, t, scale, look, look.range([t]))
+    fig.savefig(png, dpi=100, format="png")
     plt.close(fig)
 
 
-def animation_mpl(series, path, times, scale, kind, fps):
-    from matplotlib.animation import FuncAnimation, PillowWriter
+def animation_mpl(series, path, times, scale, look, fps):
+    from matplotlib.animation import FFMpegWriter, FuncAnimation, PillowWriter
     plt = _mpl()
     fig = plt.figure(figsize=(6.4, 6.4))
-    clim = None
-    if kind != "membrane":
-        clim = series.stress_range(times)
-    anim = FuncAnimation(fig, lambda i: mpl_draw(fig, series, times[i], scale, kind, clim), frames=len(times))
-    anim.save(str(path), writer=PillowWriter(fps=fps))
+    clim = look.range(times)
+    anim = FuncAnimation(fig, lambda i: mpl_draw(fig, series, times[i], scale, look, clim), frames=len(times))
+    anim.save(str(path), writer=FFMpegWriter(fps=fps) if str(path).lower().endswith(".mp4") else PillowWriter(fps=fps))
     plt.close(fig)
-

@@ -1,0 +1,85 @@
+"""The obstacle a run's problem declares, where it is, for the pictures of :mod:`.render`.
+
+A Problem states its obstacle as a bound at its constrained vertices: u_c(a_i) >= lower_bound(a_i)
+for the component c = ``constraint_component`` of a vector u (the body's point a_i + u(a_i) stays
+on the side x_c >= a_i,c + lower_bound(a_i)), or u(a_i) >= lower_bound(a_i) for a scalar u (the
+membrane's obstacle under it). Nothing in the run folder but the problem's declaration knows the
+bound, so the Problem is built again from ``run.json`` (on one process) and its bound evaluated at
+its constrained vertices: the disc's and the ball's floor y = 0 and z = 0, the bar's wall x = 0,
+the membrane's plane at the height ``obstacle``, and any user's obstacle, flat or not.
+
+The result is plain data (JSON-able: the pyvista drawing runs in a child process)::
+
+    {"component": c or None (scalar u), "flat": the plane's coordinate x_c (vector u) or height
+     (scalar u) when every obstacle point has it, else None, "points": [[x, y, z], ...] the
+     obstacle's points above/beside the constrained vertices (scalar u: (x, y, bound)),
+     "note": the picture's words for it}
+
+or ``{"none": reason}`` when the problem constrains no vertex, or ``{"unknown": reason}`` when the
+obstacle cannot be known (a run of a problem built by hand, a problem file changed since the run).
+"""
+from mpi4py import MPI
+
+import numpy as np
+
+from sdm_dolfinx import compat
+from sdm_dolfinx.io import PostprocessError
+from sdm_dolfinx.method.discretisation import vertex_coordinates
+from sdm_dolfinx.post.rebuild_run import rebuild_problem
+from sdm_dolfinx.problems.base import one_line
+
+#: obstacle points whose coordinate x_c (or bound) varies by less than this, relative to the
+#: body's size (or to the largest bound), form a flat obstacle
+FLAT_TOLERANCE = 1e-9
+
+
+def declared_obstacle(run):
+    """The obstacle of the run whose ``run.json`` contents are ``run`` (see the module).
+
+    Builds the run's Problem again on this process alone (``MPI.COMM_SELF``).
+    """
+    if not run:
+        return {"unknown": "no run.json beside solution.xdmf"}
+    described = run.get("problem") or {}
+    source, sha = described.get("source"), described.get("source_sha256")
+    if source and sha:
+        try:
+            now = compat.file_sha256(source)
+        except OSError:
+            return {"unknown": f"its problem file {source} cannot be read"}
+        if now != sha:
+            return {"unknown": f"its problem file {source} changed since the run"}
+    try:
+        problem = rebuild_problem(run, MPI.COMM_SELF)
+    except PostprocessError as e:
+        return {"unknown": str(e)}
+    except Exception as e:          # a user's build: any error is said in one line, the picture drawn without it
+        return {"unknown": f"its problem could not be built again ({one_line(e)})"}
+    return _evaluate(problem, run.get("mesh", {}).get("vertices"))
+
+
+def _evaluate(problem, vertices_of_run):
+    msh = problem.mesh
+    nverts = msh.topology.index_map(0).size_local
+    if vertices_of_run is not None and nverts != vertices_of_run:
+        return {"unknown": f"its problem, built again, has {nverts} vertices, the run had {vertices_of_run}"}
+    verts = np.asarray(problem.constraint_vertices(msh), dtype=np.int32)
+    if verts.size == 0:
+        return {"none": f"problem {problem.name!r} constrains no vertex"}
+    x = vertex_coordinates(msh, verts)                           # (3, n)
+    bound = np.asarray(problem.lower_bound(x), dtype=float).reshape(-1)
+    c = problem.constraint_component if problem.shape else None
+    points = x.T.copy()
+    if c is None:
+        points[:, 2] = bound                                     # the membrane: (x, y, bound)
+        values, size = bound, max(np.abs(bound).max(), np.ptp(x[:2], axis=1).max())
+    else:
+        points[:, c] += bound                                    # x_c + u_c >= x_c + bound
+        values, size = points[:, c], np.ptp(msh.geometry.x, axis=0).max()
+    flat = float(values.mean()) if np.ptp(values) <= FLAT_TOLERANCE * max(size, np.finfo(float).tiny) else None
+    axis = "u" if c is None else "xyz"[c]
+    if flat is not None:
+        note = f"grey: the obstacle {axis} = {flat:.4g}"
+    else:
+        note = f"grey: the obstacle through its {len(verts)} points"
+    return {"component": None if c is None else int(c), "flat": flat, "points": points.tolist(), "note": note}
