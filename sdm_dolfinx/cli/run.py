@@ -56,7 +56,8 @@ def add_run_options(p, defaults):
     def restart(g):
         g.add_argument("--restart", type=folder_path, default=None, metavar="DIR",
                        help="continue the run in DIR from its checkpoint, with the problem, parameters and options "
-                            "of DIR/run.json (same number of ranks; only --checkpoint-every and --quiet may be given)")
+                            "of DIR/run.json (same number of ranks; only --checkpoint-every, --quiet and a later --T "
+                            "may be given: --T extends a run, a finished one too)")
         g.add_argument("--allow-changed-source", action="store_true",
                        help="with --restart: continue although the problem file or sdm_dolfinx changed since the run "
                             "started (refused otherwise; run.json records it)")

@@ -41,14 +41,16 @@ class SolverSetupError(SdmError, RuntimeError):
 
 def execute(problem, options, *, out=None, restart=False, progress=False, petsc_options=None, extra_info=None,
             handle_signals=False, on_step=None, observe=None, constraint_tol=1e-8, folder_seen=None,
-            changed_source=None):
+            changed_source=None, extended=None):
     """Run ``problem`` with the checked, complete flat run ``options``
     (:func:`sdm_dolfinx.run.options.complete`) from t = 0 to T: the body of
     :func:`sdm_dolfinx.run.simulate`, whose documentation says what the keywords do;
     ``folder_seen`` is ``{"run_id": ...}`` that :func:`sdm_dolfinx.io.folder.check_out` saw in
     ``out`` (None: no check), checked again once the folder is locked; ``changed_source`` (a
     restart allowed to continue with a changed problem file or package: what changed, in words)
-    relaxes the checkpoint's identity check for those and is recorded in run.json.
+    relaxes the checkpoint's identity check for those and is recorded in run.json, as is
+    ``extended`` (a restart: the run's extensions to a later T,
+    :func:`sdm_dolfinx.run.planning.extension`).
 
     Returns:
         :class:`Result`.
@@ -69,7 +71,8 @@ def execute(problem, options, *, out=None, restart=False, progress=False, petsc_
         if signum:
             raise Interrupted("interrupted during the set-up, before anything was written", signum)
         extra = {"run_options": run_options, **(extra_info or {}),
-                 **({"continued_with_changed_source": list(changed_source)} if changed_source else {})}
+                 **({"continued_with_changed_source": list(changed_source)} if changed_source else {}),
+                 **({"extended": list(extended)} if extended else {})}
         loop.open(out, restart, o["write_every"], extra, folder_seen)
         loop.run(stop, progress, on_step, o["checkpoint_every"], constraint_tol)
         return loop.finish()
@@ -225,9 +228,9 @@ class _Loop:
                           f"[{last_print - self.wall0:.1f} s]", flush=True)
                 requested = bool(on_step(n + 1, row)) if on_step is not None else False
                 signum = stop.agreed(self.comm, requested)
-                if files is not None and checkpoint_every and ((n + 1) % checkpoint_every == 0
-                                                               or n + 1 == self.nsteps or signum):
-                    self.checkpoint(n + 1)
+                if files is not None and (checkpoint_every and ((n + 1) % checkpoint_every == 0 or signum)
+                                          or n + 1 == self.nsteps and not self.integ.stateful):
+                    self.checkpoint(n + 1)     # and at the end, whatever K: a finished run can be extended
                 if signum and n + 1 < self.nsteps:
                     self.interrupted(n + 1, signum, checkpointed=bool(checkpoint_every))
         except StepError as e:

@@ -281,16 +281,7 @@ def _owned_errors(p, o, label):
 
 def _rules(o, label):
     """Messages for combinations of options that cannot run together."""
-    errors = []
-    dt, T = o.get("dt"), o.get("T")
-    if not (_TABLE["dt"].complaints(dt) or _TABLE["T"].complaints(T)):
-        if T < dt:
-            errors.append(f"{label['T']} ({T}) must be >= {label['dt']} ({dt})")
-        elif T / dt > MAX_STEPS:
-            errors.append(f"T / dt = {T / dt:.3g} steps: at most {MAX_STEPS:.0e} (the time series alone would take "
-                          f"{T / dt * 100 / 1e9:.3g} GB)")
-        else:
-            errors += _check_whole_steps(T, dt)
+    errors = _time_rules(o.get("T"), o.get("dt"), label)
     pair, mass = o.get("pair"), o.get("mass")
     if mass is not None and not _check_pair(pair, "pair"):
         pair = get_pair(pair) if isinstance(pair, str) else pair
@@ -304,6 +295,27 @@ def _rules(o, label):
         errors += _friction.check_solver(o.get("friction"), o.get("vi_solver"), o.get("linear"))
     errors += _treatment_solver(o, label)
     return errors
+
+
+def check_time(T, dt, cli=False):
+    """RunInputError when the final time ``T`` is refused with the time step ``dt`` (a restart
+    extending a run to a later T: the other options are the run's, checked when it started)."""
+    label = {p.name: f"--{p.option}" if cli else p.name for p in TABLE}
+    errors = _TABLE["T"].check(T, label["T"]) or _time_rules(T, dt, label)
+    if errors:
+        raise RunInputError("; ".join(errors))
+
+
+def _time_rules(T, dt, label):
+    """Messages for a final time ``T`` that the time step ``dt`` cannot reach in whole steps."""
+    if _TABLE["dt"].complaints(dt) or _TABLE["T"].complaints(T):
+        return []
+    if T < dt:
+        return [f"{label['T']} ({T}) must be >= {label['dt']} ({dt})"]
+    if T / dt > MAX_STEPS:
+        return [f"T / dt = {T / dt:.3g} steps: at most {MAX_STEPS:.0e} (the time series alone would take "
+                f"{T / dt * 100 / 1e9:.3g} GB)"]
+    return _check_whole_steps(T, dt)
 
 
 def _treatment_solver(o, label):
@@ -330,10 +342,11 @@ def _check_whole_steps(T, dt):
     n = num_steps(T, dt)
     if abs(n * dt - T) <= STEP_RTOL * T:
         return []
-    return [f"T = {_num(T)} is not a multiple of dt = {_num(dt)}: {n} steps end at t = {_num(n * dt)}; give "
-            f"T = {_num(n * dt)} or {_num((n + 1) * dt)}"]
+    return [f"T = {num(T)} is not a multiple of dt = {num(dt)}: {n} steps end at t = {num(n * dt)}; give "
+            f"T = {num(n * dt)} or {num((n + 1) * dt)}"]
 
 
-def _num(x):
+def num(x):
     """A time for messages: 0.009, not 0.009000000000000001."""
     return f"{x:.12g}"
+

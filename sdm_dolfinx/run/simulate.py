@@ -9,7 +9,8 @@ from sdm_dolfinx.problems import Problem
 from sdm_dolfinx.run import options as run_options
 from sdm_dolfinx.run.loop import execute
 from sdm_dolfinx.run.options import RunInputError
-from sdm_dolfinx.run.planning import check_folder, check_run
+from sdm_dolfinx.io.folder import RunFolderError, read_info
+from sdm_dolfinx.run.planning import check_folder, check_run, extension
 from sdm_dolfinx.run.result import Result
 from sdm_dolfinx.solvers.options import unknown_option
 
@@ -40,7 +41,8 @@ def simulate(problem: Any = None, params: Optional[Mapping[str, Any]] = None, *,
             or None: nothing written. A folder holding a run is refused unless ``overwrite``.
         overwrite: replace the run in ``out``.
         restart: continue the run in ``out`` from its checkpoint (same problem, parameters, options
-            and ranks; only ``checkpoint_every`` may differ).
+            and ranks; only ``checkpoint_every`` may differ, and ``T`` to a later one: every run
+            writes a checkpoint at its end, so a finished run is extended that way).
         allow_changed_source: with ``restart``, continue even though the problem file or the
             package's version changed since the run started (refused otherwise: the physics may
             differ); run.json records what changed.
@@ -113,10 +115,27 @@ def _run_built(problem, params, given, out, overwrite, restart, comm, session):
         raise RunInputError(f"comm is not the ranks of problem {problem.name!r}'s mesh: leave it out")
     if restart and overwrite:
         raise RunInputError("a restart continues the run in out; remove overwrite")
+    extended = _extension(out, given, problem.mesh.comm) if restart else None
     opts = run_options.complete(given)
     run_options.check(opts)
     seen = None if restart else check_folder(out, overwrite, problem.mesh.comm)
-    return execute(problem, opts, out=out, restart=restart, folder_seen=seen, **session)
+    return execute(problem, opts, out=out, restart=restart, folder_seen=seen, extended=extended, **session)
+
+
+def _extension(out, given, comm):
+    """A built Problem's restart: the run's extensions to a later T (``given["T"]``; not given:
+    the run's own T, set in ``given``); RunInputError for a T not later than the run's."""
+    try:
+        info = read_info(out, comm) if out is not None else None
+    except RunFolderError:          # the checkpoint's check says what is missing
+        return None
+    if not info or "T" not in (info.get("run_options") or {}):
+        return None
+    given.setdefault("T", info["run_options"]["T"])
+    try:
+        return extension(info, given["T"], out)
+    except RunFolderError as e:
+        raise RunInputError(str(e)) from None
 
 
 def launch(problem=None, params=None, **kwargs):
