@@ -173,7 +173,8 @@ def _restart_plan(out, given, comm, problem=None, params=None, allow_changed_sou
                if k not in (*RESTART_MAY_CHANGE, "T") and v != saved.get(k)]
     if changed:
         raise RunFolderError(f"a restart continues the run as it was started; it cannot change "
-                             f"{', '.join(changed)} (only {', '.join(RESTART_MAY_CHANGE)} may change, and T to a later one)")
+                             f"{', '.join(changed)} (only {', '.join(RESTART_MAY_CHANGE)} may change, and T to a "
+                             f"later one)")
     saved.update({k: v for k, v in given.items() if k in (*RESTART_MAY_CHANGE, "T") and v is not None})
     saved["quadrature_degree"] = quadrature.of_run(info)      # the degree it used (the automatic choice may change)
     try:
