@@ -23,7 +23,7 @@ from sdm_dolfinx.problems import ProblemInputError, get, load_file, spec_of_run
 from sdm_dolfinx.problems.disc_mesh import MeshError
 from sdm_dolfinx.run import Interrupted, RunInputError, SolverSetupError, grouped, plan
 from sdm_dolfinx.io import CheckpointError, RunFolderError, read_info
-from sdm_dolfinx.run.options import OUTPUT, RESTART
+from sdm_dolfinx.run.options import OUTPUT, RESTART, check_problem_names
 from sdm_dolfinx.solvers import VI_OPTIONS
 from sdm_dolfinx.solvers.options import unknown_option
 
@@ -117,6 +117,11 @@ def _choose_spec(command, argv):
 def parse(command, argv):
     """(spec, args, extra PETSc arguments) of a run command."""
     spec = _choose_spec(command, argv)
+    if spec is not None:
+        try:
+            check_problem_names(spec)           # its --options would clash with the parser's
+        except RunInputError as e:
+            raise UsageError(str(e)) from None
     parser = build_parser(spec, command)
     if spec is None:
         if "-h" in argv or "--help" in argv:

@@ -297,6 +297,35 @@ def _rules(o, label):
     return errors
 
 
+#: the command line's own options besides the run options (the run commands' and inspect's,
+#: cli/run.py, cli/inspect.py): no problem parameter may be named like one of these or a run option
+COMMAND_LINE_NAMES = ("out", "overwrite", "quiet", "config", "restart", "allow_changed_source", "problem",
+                      "problem_file", "help", "sweep", "coulomb_bound", "json", "png", "tol", "dense_max")
+
+
+def reserved_names():
+    """The names no problem parameter may take: every run option (the registered methods' too)
+    and :data:`COMMAND_LINE_NAMES` (a parameter's ``--option`` and TOML key would clash with them)."""
+    return (*names(), *COMMAND_LINE_NAMES)
+
+
+def check_problem_names(spec):
+    """RunInputError naming the problem's file (or name) and the clash when one of ``spec``'s
+    parameters is named like a run option or an option of the command line."""
+    runs = {p.name: p.option for p in declarations()}
+    where = f"problem file {spec.source}" if spec.source else f"problem {spec.name!r}"
+    for p in spec.params:
+        for name in dict.fromkeys((p.name, p.option.replace("-", "_"))):
+            if name in runs:
+                clash = f"the run option --{runs[name]}"
+            elif name in COMMAND_LINE_NAMES:
+                clash = f"the command line's --{name.replace('_', '-')}"
+            else:
+                continue
+            raise RunInputError(f"{where}: parameter {p.name!r} (--{p.option}) is named like {clash}: rename it "
+                                f"(docs/add_a_problem.md lists the reserved names)")
+
+
 def check_time(T, dt, cli=False):
     """RunInputError when the final time ``T`` is refused with the time step ``dt`` (a restart
     extending a run to a later T: the other options are the run's, checked when it started)."""

@@ -87,6 +87,7 @@ def check_run(problem, params, given, *, out=None, overwrite=False, restart=Fals
         if restart:
             return _restart_plan(out, given, comm, problem, params, allow_changed_source, cli)
         spec = resolve(problem)
+        run_options.check_problem_names(spec)
         values = spec.values(params, cli=cli)
     except (ProblemInputError, RunFolderError) as e:
         raise RunInputError(str(e)) from None
