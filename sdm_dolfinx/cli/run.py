@@ -175,9 +175,9 @@ def make_plan(spec, args, command, comm):
         raise UsageError(str(e)) from None
 
 
-def petsc_overrides(extra):
-    """Command-line PETSc options (-sdm_...), every one checked, then passed on to PETSc.Options
-    (nothing is set when one is refused)."""
+def petsc_arguments(extra):
+    """The (key, value) pairs of the arguments the parser did not know, each checked: a PETSc
+    option of the step solver (-sdm_...), else refused as unrecognised (UsageError)."""
     pairs = []
     i = 0
     while i < len(extra):
@@ -194,10 +194,15 @@ def petsc_overrides(extra):
         _check_vi_option(key, value)
         pairs.append((key, value))
         i += 1
+    return pairs
+
+
+def set_petsc_options(pairs):
+    """Pass checked (key, value) pairs (:func:`petsc_arguments`) on to PETSc.Options."""
     opts = PETSc.Options()
     for key, value in pairs:
         opts.setValue(key[1:], value if value is not None else "")
-    if extra and not opts.hasName("options_left"):
+    if pairs and not opts.hasName("options_left"):
         # PETSc lists the options nobody read when it finalises (a misspelt -sdm_ option
         # would otherwise be ignored in silence)
         opts.setValue("options_left", "")
@@ -245,8 +250,9 @@ def main(command, argv, comm=MPI.COMM_WORLD):
             if comm.rank == 0:
                 args.print_help()
             return 0
+        pairs = petsc_arguments(extra)          # a misspelt option first: the others may depend on it
         the_plan = make_plan(spec, args, command, comm)
-        petsc_overrides(extra)
+        set_petsc_options(pairs)
     except (UsageError, ProblemInputError) as e:
         msg = str(e)
         return say_error(prog, msg.split("error: ", 1)[1] if msg.startswith(prog) else msg, comm, 2)
