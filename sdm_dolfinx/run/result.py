@@ -186,30 +186,54 @@ class Result:
     V: object = None
     discretisation: object = None
 
+    def __post_init__(self):
+        """The final fields as dolfinx Functions, made now (collective: a Result is made on every
+        rank), so that :meth:`displacement`, :meth:`velocity` and :meth:`vbar` are not: each
+        returns a copy, which any one rank may ask for (creating a Function, or updating its
+        ghosts, is collective in dolfinx: called on rank 0 only, they hung)."""
+        self._fields = {}
+        d = self.discretisation
+        if d is None or self.U is None or self.V is None:
+            return
+        self._fields["displacement"] = self._function(d.W, self.U, "displacement")
+        if d.mass == "consistent":
+            self._fields["velocity"] = self._function(d.H, self.V, "velocity")
+        elif d.H is None:
+            self._fields["velocity"] = self._function(d.W, self.V, "velocity")
+        else:
+            v = d.physical_velocity(self.V, d.B.createVecLeft())
+            self._fields["velocity"] = self._function(d.H, v, "velocity")
+            v.destroy()
+        if d.mass != "consistent":
+            self._fields["Vbar_W"] = self._function(d.W, self.V, "Vbar_W")
+
     def displacement(self):
-        """The final displacement U as a dolfinx Function of W^h (for plotting, probing, post-processing)."""
-        return self._function(self.discretisation.W, self.U, "displacement")
+        """The final displacement U as a dolfinx Function of W^h (for plotting, probing,
+        post-processing): a new copy at each call, on any rank (not collective)."""
+        return self._copy("displacement")
 
     def velocity(self):
         """The final physical velocity as a dolfinx Function: v_h = C^-1 B Vbar in H^h (C as the
         run treats it: diagonal for P0, lumped for P1), V in H^h for the consistent block
-        variant, Vbar in W^h for the standard method (H^h = W^h). The XDMF's ``velocity``."""
-        d = self.discretisation
-        if d.mass == "consistent":
-            return self._function(d.H, self.V, "velocity")
-        if d.H is None:
-            return self._function(d.W, self.V, "velocity")
-        return self._function(d.H, d.physical_velocity(self.V, d.B.createVecLeft()), "velocity")
+        variant, Vbar in W^h for the standard method (H^h = W^h). The XDMF's ``velocity``. A
+        new copy at each call, on any rank (not collective)."""
+        return self._copy("velocity")
 
     def vbar(self):
         """The final Vbar in W^h, the scheme's M-formulation vector (the XDMF's ``Vbar_W``): only
         M Vbar is determined by the scheme; with a singular M (dim H^h < dim W^h) Vbar also has a
         component in Ker(M) that carries no kinetic energy (see docs/outputs.md). ValueError for
-        the consistent block variant, which has no Vbar."""
-        d = self.discretisation
-        if d.mass == "consistent":
+        the consistent block variant, which has no Vbar. A new copy at each call, on any rank."""
+        if self.discretisation is not None and self.discretisation.mass == "consistent":
             raise ValueError("the (U, V) block system (--mass consistent) has no Vbar: its velocity is in H^h")
-        return self._function(d.W, self.V, "Vbar_W")
+        return self._copy("Vbar_W")
+
+    def _copy(self, name):
+        if name not in self._fields:
+            raise ValueError("this Result holds no final state (U, V and the discretisation)")
+        f = self._fields[name].copy()           # rank-local: the copy shares the space's ghost layout
+        f.name = name
+        return f
 
     def max_energy_deviation(self):
         """max_n |J^n - J^0| / |J^0| of the discrete energy (Theorem 2: 0 for the midpoint scheme without impact)."""
