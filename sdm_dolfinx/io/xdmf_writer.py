@@ -216,9 +216,16 @@ class XDMFWriter:
                     if name in h5:              # the failed-step write of a step written already
                         del h5[name]
                     h5.create_dataset(name, data=data[f])
-            if n not in self.steps:
+            added = n not in self.steps
+            if added:
                 self.steps.append(n)
-            self._write_xml()
+            try:
+                self._write_xml()
+            except BaseException:
+                if added:                       # the XML lists the steps before it: so must the file
+                    self.steps.remove(n)
+                self.journal.undo_last()
+                raise
 
     def _write_xml(self, replace_any=False):
         """The whole XML, atomically (rank 0); a file deleted or replaced by someone else since
