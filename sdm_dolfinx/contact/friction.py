@@ -116,6 +116,15 @@ def make(friction=None, mu=None, threshold=None):
     return Friction(law, None if mu is None else float(mu), None if threshold is None else float(threshold))
 
 
+def tangential_axes(problem):
+    """The components of u tangential to the obstacle (all but the constrained one): ``(0,)`` for a
+    2-D problem bounded in y, ``(0, 1)`` for a 3-D one bounded in z; () for a scalar problem."""
+    shape = tuple(problem.shape)
+    if not shape:
+        return ()
+    return tuple(c for c in range(shape[0]) if c != (problem.constraint_component or 0))
+
+
 def contact_dofs(discretisation, friction):
     """(tangential dofs paired with ``discretisation.cdofs``: m in 2-D, m x 2 in 3-D; the Tresca
     thresholds per vertex or None) for ``friction``; ValueError (one line) for a problem friction

@@ -302,6 +302,14 @@ class Integrator:
         return lam_t if lam_t.ndim == 1 else np.linalg.norm(lam_t, axis=1)
 
     @property
+    def lam_t_components(self):
+        """Tangential multipliers of the last step at the owned constrained vertices, signed: m in
+        2-D, m x 2 in 3-D (the tangential axes in increasing order; friction, else 0)."""
+        if self.friction is None:
+            return np.zeros(len(self.discretisation.cdofs))
+        return np.asarray(self.solver.lam_t)
+
+    @property
     def slipping(self):
         """Which owned constrained vertices slipped in the last step (the frictional step solver's
         slip set; None without friction)."""

@@ -185,7 +185,8 @@ class _Loop:
     def record(self, n, its, n_active, step=None):
         integ = self.integ
         row = self.series.record(n, n * self.dt, self.U, self.V, self.lam, its, n_active, step,
-                                 linear_its_total=integ.linear_its, slip=integ.slip)
+                                 linear_its_total=integ.linear_its,
+                                 slip=integ.slip_t if integ.friction is not None else None)
         if self.files is not None:
             self.files.row(row)
         if self.observe is not None:
@@ -195,7 +196,7 @@ class _Loop:
     def fields(self, n, lam):
         """Write the fields of step ``n`` (the state's, with the contact forces ``lam``)."""
         integ = self.integ
-        self.files.fields(n, self.U, self.V, lam, integ.lam_t if integ.friction is not None else None,
+        self.files.fields(n, self.U, self.V, lam, integ.lam_t_components if integ.friction is not None else None,
                           integ.slipping)
 
     def run(self, stop, progress, on_step, checkpoint_every, constraint_tol):
