@@ -53,7 +53,7 @@ def p1_bubble_element(cell: str, shape: tuple[int, ...] = ()) -> Element:
     return e
 
 
-def cell_name(msh):
+def cell_name(msh: Any) -> str:
     """The cell name ('triangle', ...) of a mesh, as element constructors want it."""
     if NEW_API:  # pragma: no cover
         return msh.topology.cell_name()
@@ -194,7 +194,7 @@ def _num_cells(msh):
     return imap.size_local + imap.num_ghosts
 
 
-def mesh_geometry_dofmap(msh):
+def mesh_geometry_dofmap(msh: Any) -> Any:
     """Cell -> geometry node indices, as a 2-D (num_cells, nodes_per_cell) array."""
     if NEW_API:  # pragma: no cover
         return msh.geometry.dofmap

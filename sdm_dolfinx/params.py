@@ -54,6 +54,8 @@ class Param:
         optional: None is accepted and means ``default`` (an option whose owner applies its
             default when it is not given).
         required: None is refused: the value must be given (e.g. Coulomb's ``mu``).
+        high_note: why ``high`` bounds the value: a value above it is refused with this reason
+            (instead of ``expect``, which still describes the other refusals).
     """
     name: str
     default: Any
@@ -69,6 +71,7 @@ class Param:
     expect: Optional[str] = None
     optional: bool = False
     required: bool = False
+    high_note: Optional[str] = None
 
     @property
     def kind(self) -> ParamType:
@@ -119,9 +122,11 @@ class Param:
             return [] if value in choices else [f"must be one of {', '.join(map(str, choices))} (got {value!r})"]
         if kind is int and not float(value).is_integer():
             return [self._expected(value, f"must be an integer (got {value!r})")]
+        unit = f" {self.unit}" if self.unit not in ("-", "") else ""
+        if self.high_note and self.high is not None and math.isfinite(float(value)) and value > self.high:
+            return [f"must be at most {_num(self.high)}{unit} ({self.high_note}) (got {_num(float(value))})"]
         if not _finite(value):
             return [self._expected(value, f"must be a finite number of magnitude <= 1e150 (got {value})")]
-        unit = f" {self.unit}" if self.unit not in ("-", "") else ""
         if self.low is not None and (value <= self.low if self.low_strict else value < self.low):
             return [self._expected(value, f"must be {'>' if self.low_strict else '>='} {_num(self.low)}{unit} "
                                           f"(got {value})")]

@@ -23,47 +23,11 @@ so the bound is the pair's, the mesh's and the time step's.
 """
 import numpy as np
 
+from sdm_dolfinx.contact.friction_bound import SAMPLES, compliance, measure, mu_critical  # noqa: F401
 from sdm_dolfinx.method.discretisation import Discretisation
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.contact.friction import Friction
 from sdm_dolfinx.run.integrator import Integrator
-
-#: random slip-direction patterns tried besides the two uniform ones
-SAMPLES = 64
-
-
-def compliance(integ):
-    """(G_nn, G_nt) on every rank: K^-1 at the contact dofs (one solve per contact dof)."""
-    solver = integ.solver
-    comm, K = solver.comm, integ.K
-    r0 = K.getOwnershipRange()[0]
-    nd = np.concatenate(comm.allgather(r0 + solver.ndofs))
-    td = np.concatenate(comm.allgather(r0 + solver.tdofs))
-    e, z = K.createVecLeft(), K.createVecRight()
-    cols = []
-    for g in np.concatenate([nd, td]):
-        e.set(0.0)
-        if r0 <= g < r0 + e.getLocalSize():
-            e.array[g - r0] = 1.0
-        solver.fac.solve(e, z)
-        cols.append(np.concatenate(comm.allgather(np.r_[z.array_r[solver.ndofs], z.array_r[solver.tdofs]])))
-    Z = np.array(cols).T                             # rows: n dofs then t dofs of every rank, in order
-    m = len(nd)
-    counts = comm.allgather(len(solver.ndofs))
-    order_n = np.concatenate([o + np.arange(c) for o, c in zip(np.r_[0, np.cumsum(counts)[:-1]] * 2, counts)])
-    order_t = order_n + np.repeat(counts, counts)
-    G = Z[np.r_[order_n, order_t]]
-    return G[:m, :m], G[:m, m:]
-
-
-def mu_critical(Gnn, Gnt, sigma):
-    """mu_c(sigma) of the module's docstring."""
-    L = np.linalg.cholesky(0.5 * (Gnn + Gnn.T))
-    S = Gnt * sigma[None, :]
-    S = 0.5 * (S + S.T)
-    Li = np.linalg.inv(L)
-    top = float(np.linalg.eigvalsh(Li @ S @ Li.T).max())
-    return np.inf if top <= 0 else 1.0 / top
 
 
 def coulomb_bound(problem, pair, dt, scheme="midpoint", mass=None, samples=SAMPLES, seed=0):
@@ -79,17 +43,10 @@ def coulomb_bound(problem, pair, dt, scheme="midpoint", mass=None, samples=SAMPL
     d = Discretisation(problem, pair, mass)
     integ = Integrator(d, scheme, dt, friction=Friction("coulomb", mu=0.0))
     try:
-        Gnn, Gnt = compliance(integ)
+        r = measure(integ, samples, seed)
     finally:
         integ.destroy()
-    m = len(Gnn)
-    if m == 0:
-        return {"pair": d.pair.name, "vertices": 0, "mu_c": None, "dt": dt, "scheme": scheme}
-    uniform = min(mu_critical(Gnn, Gnt, s * np.ones(m)) for s in (1.0, -1.0))
-    rng = np.random.default_rng(seed)
-    rand = min((mu_critical(Gnn, Gnt, rng.choice([-1.0, 1.0], m)) for _ in range(samples)), default=np.inf)
-    return {"pair": d.pair.name, "vertices": m, "dt": dt, "scheme": scheme, "mu_uniform": uniform,
-            "mu_random": rand, "mu_c": min(uniform, rand)}
+    return {"pair": d.pair.name, "dt": dt, "scheme": scheme, **r}
 
 
 def bound_line(r):

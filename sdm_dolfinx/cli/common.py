@@ -109,20 +109,32 @@ def folder_path(text):
     return Path(text)
 
 
+#: the files of a run folder (docs/outputs.md) that no command writes but the run (and energy its own)
+RUN_FOLDER_FILES = ("run.json", "timeseries.csv", "solution.xdmf", "solution.h5", "state.h5", "checkpoint.npz",
+                    "energy_recomputed.csv", ".lock")
+
+
 def check_writable(path, what):
-    """A file the command will write: not a folder, and its nearest existing folder writable."""
+    """A file the command will write: not a folder, not a file of a run folder (nor any file of
+    one a run is writing now), and its nearest existing folder writable (tried with a temporary
+    file: ``os.access`` says yes to root on /proc or a read-only mount)."""
+    import tempfile
+    from sdm_dolfinx.io.folder import lock_holder
     if path.exists() and path.is_dir():
         raise UsageError(f"{what} {path} is a folder")
-    d = path.parent
+    folder = path.parent
+    holder = lock_holder(folder) if folder.is_dir() else None
+    if holder is not None and path.name in RUN_FOLDER_FILES:
+        raise UsageError(f"{what} {path}: {folder} holds a run in progress ({holder}): choose another file")
+    if path.name in RUN_FOLDER_FILES and (folder / "run.json").is_file():
+        raise UsageError(f"{what} {path} is the {path.name} of the run in {folder}: choose another file")
+    d = folder
     while not d.exists():
         d = d.parent
     if not os.access(d, os.W_OK | os.X_OK):
         raise UsageError(f"cannot write {what} {path} ({d} is not writable)")
-    # os.access says yes to root in a read-only (immutable, read-only mounted) folder: try a
-    # temporary file there (removed at once)
-    import tempfile
     try:
         with tempfile.TemporaryFile(dir=d):
             pass
     except OSError as e:
-        raise UsageError(f"cannot write {what} {path} ({d}: {e.strerror or e})") from None
+        raise UsageError(f"cannot write {what} {path} (creating a file in {d} failed: {e.strerror or e})") from None

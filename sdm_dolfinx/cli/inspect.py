@@ -29,6 +29,7 @@ from sdm_dolfinx.problems import ProblemInputError
 from sdm_dolfinx.problems.disc_mesh import MeshError
 from sdm_dolfinx.run import RunInputError
 from sdm_dolfinx.run.memory import check_memory
+from sdm_dolfinx.run.options import check_problem_names
 
 PROG = "python -m sdm_dolfinx inspect"
 #: the problem when none is named
@@ -61,8 +62,10 @@ def choose_spec(argv, comm=MPI.COMM_WORLD):
         if name is not None:
             raise UsageError(f"a problem name ({name}) and --problem-file: choose one")
         try:
-            return problems.load_file(known.problem_file)
-        except ProblemInputError as e:
+            spec = problems.load_file(known.problem_file)
+            check_problem_names(spec)           # its --options would clash with the parser's
+            return spec
+        except (ProblemInputError, RunInputError) as e:
             raise UsageError(str(e)) from None
     if name is None:
         return problems.get(DEFAULT_PROBLEM)

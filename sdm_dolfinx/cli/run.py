@@ -23,7 +23,7 @@ from sdm_dolfinx.problems import ProblemInputError, get, load_file, spec_of_run
 from sdm_dolfinx.problems.disc_mesh import MeshError
 from sdm_dolfinx.run import Interrupted, RunInputError, SolverSetupError, grouped, plan
 from sdm_dolfinx.io import CheckpointError, RunFolderError, read_info
-from sdm_dolfinx.run.options import OUTPUT, RESTART
+from sdm_dolfinx.run.options import OUTPUT, RESTART, check_problem_names
 from sdm_dolfinx.solvers import VI_OPTIONS
 from sdm_dolfinx.solvers.options import unknown_option
 
@@ -56,7 +56,8 @@ def add_run_options(p, defaults):
     def restart(g):
         g.add_argument("--restart", type=folder_path, default=None, metavar="DIR",
                        help="continue the run in DIR from its checkpoint, with the problem, parameters and options "
-                            "of DIR/run.json (same number of ranks; only --checkpoint-every and --quiet may be given)")
+                            "of DIR/run.json (same number of ranks; only --checkpoint-every, --quiet and a later --T "
+                            "may be given: --T extends a run, a finished one too)")
         g.add_argument("--allow-changed-source", action="store_true",
                        help="with --restart: continue although the problem file or sdm_dolfinx changed since the run "
                             "started (refused otherwise; run.json records it)")
@@ -116,6 +117,11 @@ def _choose_spec(command, argv):
 def parse(command, argv):
     """(spec, args, extra PETSc arguments) of a run command."""
     spec = _choose_spec(command, argv)
+    if spec is not None:
+        try:
+            check_problem_names(spec)           # its --options would clash with the parser's
+        except RunInputError as e:
+            raise UsageError(str(e)) from None
     parser = build_parser(spec, command)
     if spec is None:
         if "-h" in argv or "--help" in argv:
@@ -169,9 +175,9 @@ def make_plan(spec, args, command, comm):
         raise UsageError(str(e)) from None
 
 
-def petsc_overrides(extra):
-    """Command-line PETSc options (-sdm_...), every one checked, then passed on to PETSc.Options
-    (nothing is set when one is refused)."""
+def petsc_arguments(extra):
+    """The (key, value) pairs of the arguments the parser did not know, each checked: a PETSc
+    option of the step solver (-sdm_...), else refused as unrecognised (UsageError)."""
     pairs = []
     i = 0
     while i < len(extra):
@@ -188,10 +194,15 @@ def petsc_overrides(extra):
         _check_vi_option(key, value)
         pairs.append((key, value))
         i += 1
+    return pairs
+
+
+def set_petsc_options(pairs):
+    """Pass checked (key, value) pairs (:func:`petsc_arguments`) on to PETSc.Options."""
     opts = PETSc.Options()
     for key, value in pairs:
         opts.setValue(key[1:], value if value is not None else "")
-    if extra and not opts.hasName("options_left"):
+    if pairs and not opts.hasName("options_left"):
         # PETSc lists the options nobody read when it finalises (a misspelt -sdm_ option
         # would otherwise be ignored in silence)
         opts.setValue("options_left", "")
@@ -239,8 +250,9 @@ def main(command, argv, comm=MPI.COMM_WORLD):
             if comm.rank == 0:
                 args.print_help()
             return 0
+        pairs = petsc_arguments(extra)          # a misspelt option first: the others may depend on it
         the_plan = make_plan(spec, args, command, comm)
-        petsc_overrides(extra)
+        set_petsc_options(pairs)
     except (UsageError, ProblemInputError) as e:
         msg = str(e)
         return say_error(prog, msg.split("error: ", 1)[1] if msg.startswith(prog) else msg, comm, 2)

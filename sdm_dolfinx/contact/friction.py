@@ -38,7 +38,7 @@ per-vertex sizes |U^{n+1} - U^n|_t and |lam_T| (``Integrator.slip_t`` and the so
 keep both components).
 """
 from dataclasses import dataclass
-from typing import Optional
+from typing import Any, Optional
 
 import numpy as np
 
@@ -114,6 +114,15 @@ def make(friction=None, mu=None, threshold=None):
         raise OptionError("; ".join(errors))
     law = friction or "none"
     return Friction(law, None if mu is None else float(mu), None if threshold is None else float(threshold))
+
+
+def tangential_axes(problem: Any) -> tuple[int, ...]:
+    """The components of u tangential to the obstacle (all but the constrained one): ``(0,)`` for a
+    2-D problem bounded in y, ``(0, 1)`` for a 3-D one bounded in z; () for a scalar problem."""
+    shape = tuple(problem.shape)
+    if not shape:
+        return ()
+    return tuple(c for c in range(shape[0]) if c != (problem.constraint_component or 0))
 
 
 def contact_dofs(discretisation, friction):

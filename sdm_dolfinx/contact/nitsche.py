@@ -93,11 +93,20 @@ GAMMA0_NOTE = ("theta = 1 needs gamma0 above an inverse-inequality constant (pap
                "rod P1/P1, dt = 2e-3, the L2-in-time error of the contact stress 0.17 / 0.36 / 0.67 at gamma0 = 5 / 20 "
                "/ 200). GetFEM's demo uses gamma0 = 5 with theta = 0 on the P1 rod, with the same gamma = "
                "gamma0 E / h: nitsche_gamma0=5, nitsche_theta=0 is its Nitsche term")
+#: the largest gamma0: Nitsche's term is gamma0 times the mesh's stiffness on the contact boundary, so the
+#: Newton residual of a step (relative to max|X_B|, nitsche_newton.py) stalls near gamma0 x 2.2e-16, which
+#: must stay below its 1e-8 acceptance: the disc (level 1, P2/P1, dt = 1e-4) fails at its impact from gamma0
+#: = 1e9 on (residual 1.2e-8; 1e20: 1e17; 1e40: NaN), passes at 1e8; 1e6 keeps two decades of margin, and a
+#: larger gamma0 is only a stiffer penalty (the contact stress error grows with it: GAMMA0_NOTE)
+MAX_GAMMA0 = 1e6
 #: the treatment's options (``contact_options``)
 OPTIONS = (Param("nitsche_theta", DEFAULT_THETA, "Nitsche's theta: 1 (symmetric), 0 or -1 (skew-symmetric)",
                  type=int, choices=THETAS, metavar="THETA", optional=True),
            Param("nitsche_gamma0", DEFAULT_GAMMA0, "Nitsche's gamma0: gamma = gamma0 / h x the normal stiffness",
-                 type=float, low=0.0, low_strict=True, expect="a finite number > 0", metavar="G0", optional=True))
+                 type=float, low=0.0, low_strict=True, expect="a finite number > 0", metavar="G0", optional=True,
+                 high=MAX_GAMMA0, high_note="above, a step's Newton residual stalls near gamma0 x round-off, too "
+                                            "close to its 1e-8 acceptance: the disc failed from 1e9 on; a larger "
+                                            "gamma0 is only a stiffer penalty"))
 
 
 def _degree(V):

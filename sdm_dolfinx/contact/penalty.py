@@ -47,10 +47,19 @@ from sdm_dolfinx.solvers import PenaltyNewton
 
 #: the default ``penalty``: epsilon = 1 x the mesh's stiffness per unit area at the contact (see the module)
 DEFAULT_PENALTY = 1.0
+#: the largest ``penalty``: the step's Newton system (S_AA + diag(1/k_A)) mu = ... (solvers/penalty.py) holds
+#: the springs' compliance 1/k, 1/penalty of the mesh's own compliance S_AA; above 1e12 it is within 1e4
+#: round-offs (eps = 2.2e-16) of S_AA, so the run is the exact contact's (measured: the disc's u_probe and
+#: lambda_probe agree with it to 1e-12 from penalty 1e12 on), while contact_energy = k/2 (lb - U)^2 grows like
+#: penalty times the midpoint scheme's O(dt) dip of U^{n+1} (the disc, level 1: 1e12 at penalty 1e12, and
+#: ~1e149 at 1e150): no penalty run above it says anything contact exact does not
+MAX_PENALTY = 1e12
 #: the treatment's option (``contact_options``)
 OPTIONS = (Param("penalty", DEFAULT_PENALTY, "penalty parameter: epsilon = penalty x the mesh's stiffness per unit "
                  "area at the contact, see docs/methods.md", type=float, low=0.0, low_strict=True,
-                 expect="a finite number > 0", metavar="EPS", optional=True),)
+                 expect="a finite number > 0", metavar="EPS", optional=True, high=MAX_PENALTY,
+                 high_note="above, the springs' compliance 1/penalty is lost in the round-off of the step's: that is "
+                           "contact exact, with a contact energy of round-off times the penalty"),)
 
 
 def stiffness_scale(discretisation):

@@ -128,6 +128,7 @@ class JournaledFile:
         self._logged = set()            # (offset, end) ranges saved in the log since the commit
         self._log, self._log_len = None, 0
         self._inode = None
+        self._last = None               # (size before, [(offset, old bytes)]) of the last session since the commit
         if self.path.exists():
             self._inode = os.stat(self.path).st_ino
 
@@ -169,6 +170,24 @@ class JournaledFile:
             raise
         finally:
             io_.release()
+        self._last = (io_.size0, io_.saved)
+
+    def undo_last(self):
+        """Undo the last session (since the last commit), which went through: the file as it was
+        before it (the bytes it overwrote written back, then cut to its size before). It needs no
+        space, so a step whose other files could not be written (a full disc) takes its data back
+        out of this one. Nothing to undo: nothing happens."""
+        if self._last is None:
+            return
+        size0, saved = self._last
+        fd = os.open(self.path, os.O_RDWR)
+        try:
+            for off, old in reversed(saved):
+                _pwrite_all(fd, old, off)
+            os.ftruncate(fd, size0)
+        finally:
+            os.close(fd)
+        self._last = None
 
     def commit(self, token):
         """The file as it is now is the state of the checkpoint ``token`` (call with the file
@@ -176,6 +195,7 @@ class JournaledFile:
         size = self.size()
         self.reset_log(token, size)
         self.committed, self.token = size, token
+        self._last = None
 
     def reset_log(self, token, size):
         """Empty the undo log, then give it the header of the commit ``token`` (at a checkpoint,

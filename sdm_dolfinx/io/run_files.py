@@ -169,10 +169,37 @@ class RunFiles:
         self.last_row = int(row["step"])
 
     def fields(self, n, U, V, lam, lam_t=None, slipping=None):
-        """Write the fields of step ``n`` to ``solution.xdmf`` and ``state.h5`` (with friction, the
-        step's ``lam_t`` and ``slipping`` too: :meth:`XDMFWriter.write`)."""
-        agree(self.comm, self.xdmf.write, U, V, lam, lam > 0, n, lam_t, slipping, path=self.out / "solution.h5")
-        agree(self.comm, self.state.write, U, V, n, n * self.dt, path=self.out / "state.h5")
+        """Write the fields of step ``n`` to ``state.h5`` and ``solution.xdmf`` (with friction, the
+        step's ``lam_t`` and ``slipping`` too: :meth:`XDMFWriter.write`): all or nothing. When one
+        write fails (a full disc), what the others wrote of step ``n`` is taken back out, and so is
+        its time-series row, so that every file ends at the last good step (the time series held a
+        step that state.h5 did not)."""
+        try:
+            agree(self.comm, self.state.write, U, V, n, n * self.dt, path=self.out / "state.h5")
+        except RunFileError:
+            self._take_back(n)
+            raise
+        try:
+            agree(self.comm, self.xdmf.write, U, V, lam, lam > 0, n, lam_t, slipping, path=self.out / "solution.h5")
+        except RunFileError:
+            self._take_back(n, "state.h5")
+            raise
+
+    def _take_back(self, n, *written):
+        """Undo step ``n``'s writes of the HDF5 files ``written`` and its row of timeseries.csv (best
+        effort: none of it needs space; the step's error is the one reported)."""
+        def undo():
+            if self.comm.rank == 0:
+                for name in written:
+                    self.journals[name].undo_last()
+                if self.last_row == n:
+                    self.csv.drop_last()
+        try:
+            agree(self.comm, undo, path=self.out)
+        except RunFileError:
+            return
+        if self.last_row == n:
+            self.last_row = n - 1
 
     def state_write(self, U, V, n):
         """Write step ``n`` to ``state.h5`` only (a restart that starts a new state.h5)."""

@@ -36,6 +36,7 @@ class CSVWriter:
             flags = os.O_WRONLY | os.O_CREAT | (os.O_APPEND if append else os.O_TRUNC)
             self.fd = os.open(self.path, flags, 0o644)
             self.inode, self.size = os.fstat(self.fd).st_ino, os.fstat(self.fd).st_size
+            self.before_last = None         # the size before the last row (drop_last)
             if not append:
                 self._append(",".join(self.columns) + "\n")
 
@@ -54,7 +55,15 @@ class CSVWriter:
         except OSError:
             os.ftruncate(self.fd, self.size)        # no partial row
             raise
+        self.before_last = self.size
         self.size += n
+
+    def drop_last(self):
+        """Cut the last row off again (rank 0 only; needs no space): its step's other files could
+        not be written."""
+        if self.fd is not None and self.before_last is not None:
+            os.ftruncate(self.fd, self.before_last)
+            self.size, self.before_last = self.before_last, None
 
     def write(self, row):
         """Append one row (a dict column -> value) (rank 0 only)."""

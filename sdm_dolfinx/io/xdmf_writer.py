@@ -10,6 +10,8 @@ import numpy as np
 from dolfinx import fem
 
 from sdm_dolfinx import compat
+from sdm_dolfinx.contact.friction import tangential_axes
+from sdm_dolfinx.method.discretisation import vertex_to_dof
 from sdm_dolfinx.mpiutil import atomic_write_text
 from sdm_dolfinx.io.journal import FileVanished
 from sdm_dolfinx.io.xdmf_nodes import output_nodes
@@ -75,7 +77,8 @@ class XDMFWriter:
     Args:
         block: V is the (U, V) block system's velocity in H^h (mass ``"consistent"``), else Vbar in W^h.
         friction: write the friction fields ``tangential_stress`` and ``contact_status`` (then
-            :meth:`write` takes the step's ``lam_t`` and ``slipping``).
+            :meth:`write` takes the step's ``lam_t`` and ``slipping``); in 3-D ``tangential_stress``
+            is a vector (its components along the tangential axes, 0 along the normal).
         journal: the HDF5 file's :class:`JournaledFile` (rank 0; None elsewhere).
         steps: None for new files; else the steps already in the HDF5 file (a restart).
     """
@@ -101,8 +104,15 @@ class XDMFWriter:
         if self.vH is not None and self.vW is not None:
             src["Vbar_W"] = (self.vW, wdeg)
         self.friction = bool(friction)
+        #: the tangential axes of a 3-D problem's friction (its tangential_stress is then a vector)
+        self.tangent = tangential_axes(d.problem) if self.friction and len(tangential_axes(d.problem)) > 1 else ()
         if self.friction:                           # lam_T / m_i and 0 free, 1 stick, 2 slip
-            src["tangential_stress"], src["contact_status"] = (fem.Function(d.Q1), 1), (fem.Function(d.Q1), 1)
+            stress = fem.Function(d.P1 if self.tangent else d.Q1)
+            src["tangential_stress"], src["contact_status"] = (stress, 1), (fem.Function(d.Q1), 1)
+            if self.tangent:                        # the constrained vertices' blocks in the vector P1 space
+                self._p1_of_c = vertex_to_dof(d.P1, d.cverts[d.c_vertex])
+        self.vector_fields = ({"displacement", "velocity", "Vbar_W"} if self.vector else set()) | (
+            {"tangential_stress"} if self.tangent else set())
         self.FIELDS = tuple(n for n in ("displacement", "velocity", "Vbar_W", "contact_stress", "active",
                                         "tangential_stress", "contact_status") if n in src)
         self.src = {n: f for n, (f, _) in src.items()}
@@ -171,13 +181,29 @@ class XDMFWriter:
         vertex = [(self.s1, lam / measure), (self.a1, active.astype(float))]
         if self.friction:                           # 0 not in contact, 1 sticking, 2 slipping
             status = np.where(active, np.where(np.asarray(slipping, dtype=bool), 2.0, 1.0), 0.0)
-            vertex += [(self.src["tangential_stress"], lam_t / measure), (self.src["contact_status"], status)]
+            vertex.append((self.src["contact_status"], status))
+            if self.tangent:
+                self._fill_tangential(np.asarray(lam_t) / measure[:, None])
+            else:
+                vertex.append((self.src["tangential_stress"], lam_t / measure))
         for f, vals in vertex:
             f.x.array[:] = 0.0
             f.x.array[d.q1_of_c] = np.asarray(vals)[d.c_vertex]     # constrain="nodes": the vertex dofs
             vec = compat.petsc_vec(f)
             vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
             vec.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+
+    def _fill_tangential(self, tau):
+        """3-D: the vector tangential_stress from its components ``tau`` (m x 2, along the tangential
+        axes) at the owned constrained vertices, 0 along the normal and elsewhere (collective)."""
+        d, f = self.discretisation, self.src["tangential_stress"]
+        bs = d.P1.dofmap.index_map_bs
+        f.x.array[:] = 0.0
+        for k, axis in enumerate(self.tangent):
+            f.x.array[self._p1_of_c * bs + axis] = tau[d.c_vertex, k]
+        vec = compat.petsc_vec(f)
+        vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        vec.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
 
     def _values(self, name):
         """The rows of field ``name`` on rank 0 (None elsewhere), vectors padded to 3 (collective)."""
@@ -204,7 +230,8 @@ class XDMFWriter:
     def write(self, U, V, lam, active, n, lam_t=None, slipping=None):
         """Write the fields of step ``n`` (collective); the contact stress is each constrained
         vertex's multiplier divided by its lumped measure. With friction, ``lam_t`` (the tangential
-        multipliers' sizes) and ``slipping`` (the slip set) at the owned constrained vertices."""
+        multipliers, signed: m in 2-D, m x 2 in 3-D) and ``slipping`` (the slip set) at the owned
+        constrained vertices."""
         if (lam_t is not None, slipping is not None) != (self.friction, self.friction):
             raise TypeError("XDMFWriter.write takes lam_t and slipping exactly when it writes the friction fields")
         self._fill(U, V, lam, active, lam_t, slipping)
@@ -216,9 +243,16 @@ class XDMFWriter:
                     if name in h5:              # the failed-step write of a step written already
                         del h5[name]
                     h5.create_dataset(name, data=data[f])
-            if n not in self.steps:
+            added = n not in self.steps
+            if added:
                 self.steps.append(n)
-            self._write_xml()
+            try:
+                self._write_xml()
+            except BaseException:
+                if added:                       # the XML lists the steps before it: so must the file
+                    self.steps.remove(n)
+                self.journal.undo_last()
+                raise
 
     def _write_xml(self, replace_any=False):
         """The whole XML, atomically (rank 0); a file deleted or replaced by someone else since
@@ -262,7 +296,7 @@ class XDMFWriter:
         key = (name, n)
         if key not in self._grids:
             ind, nn = "  ", self.nodes.num_nodes
-            vector = self.vector and name in ("displacement", "velocity", "Vbar_W")
+            vector = name in self.vector_fields
             centre, rows = ("Cell", self.nodes.num_cells) if name in self.cell_fields else ("Node", nn)
             text, tkey = time_key(n * self.dt)
             self._grids[key] = "\n".join([

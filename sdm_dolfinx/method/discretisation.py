@@ -14,7 +14,7 @@ from dolfinx import fem, mesh as dmesh
 from sdm_dolfinx import compat
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.method.frozen import FrozenData
-from sdm_dolfinx.method import masses, quadrature
+from sdm_dolfinx.method import masses, problem_data, quadrature
 from sdm_dolfinx.method.pairs import MASS_TREATMENTS, get_pair
 
 #: an initial displacement below the bound by more than this times max(1, max |bound|) at a
@@ -237,7 +237,7 @@ class Discretisation:
         """Owned constrained dofs of W (vertex dofs only, eq. (13)) and their lower bounds."""
         p = self.problem
         msh = p.mesh
-        verts = self._owned_constrained_vertices(np.asarray(p.constraint_vertices(msh), dtype=np.int32))
+        verts = self._owned_constrained_vertices(problem_data.vertices(p, self.comm))
         bs = self.W.dofmap.index_map_bs
         comp = p.constraint_component or 0                  # validated: None only for a scalar u
         dofs = vertex_to_dof(self.W, verts) * bs + comp
@@ -247,9 +247,8 @@ class Discretisation:
         verts, dofs = verts_all[keep], dofs[keep]
         order = np.argsort(dofs)
         self.cverts, self.cdofs = verts[order], dofs[order].astype(np.int32)
-        xv = vertex_coordinates(msh, self.cverts) if self.cverts.size else np.zeros((3, 0))
-        self.cx = xv
-        self.lb = np.asarray(p.lower_bound(xv), dtype=PETSc.ScalarType).reshape(-1)
+        self.cx = xv = vertex_coordinates(msh, self.cverts) if self.cverts.size else np.zeros((3, 0))
+        self.lb = problem_data.bound(p, xv, self.comm)
         self.num_constraints = self.comm.allreduce(len(self.cdofs), op=MPI.SUM)
         # lumped nodal measure at each constrained vertex (for stress = multiplier / measure)
         m = compat.assemble_vector(self.form(self._measure_ufl))
@@ -312,7 +311,7 @@ class Discretisation:
         order = np.argsort(dofs[keep])
         self.bdofs = dofs[keep][order].astype(np.int32)
         self.bx = self._dof_x()[blocks[keep][order]].T if self.bdofs.size else np.zeros((3, 0))
-        self.blb = np.asarray(p.lower_bound(self.bx), dtype=PETSc.ScalarType).reshape(-1)
+        self.blb = problem_data.bound(p, self.bx, self.comm)
         self.num_boundary_dofs = self.comm.allreduce(len(self.bdofs), op=MPI.SUM)
 
     def _nodes(self):
@@ -331,7 +330,7 @@ class Discretisation:
         verts[self.c_vertex] = self.cverts
         self.cdofs, self.cverts = dofs, verts
         self.cx = self._dof_x()[dofs // W.dofmap.index_map_bs].T if dofs.size else np.zeros((3, 0))
-        self.lb = np.asarray(self.problem.lower_bound(self.cx), dtype=PETSc.ScalarType).reshape(-1)
+        self.lb = problem_data.bound(self.problem, self.cx, self.comm)
         self.cmeasure = masses.nodal_measure(self, dofs)
         self.num_constraints = self.comm.allreduce(len(dofs), op=MPI.SUM)
 
@@ -363,6 +362,7 @@ class Discretisation:
         u0.interpolate(getattr(p.u0, "for_constraint", lambda kind: p.u0)(self.constrain))
         v0.interpolate(p.v0)
         U, V = compat.petsc_vec(u0).copy(), compat.petsc_vec(v0).copy()
+        problem_data.initial_finite(p, U, V, self.comm)
         if self.ddofs.size:
             U.array[self.ddofs] = self.g.x.array[self.ddofs]
             V.array[self.ddofs] = 0.0

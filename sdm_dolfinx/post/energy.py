@@ -37,9 +37,11 @@ def recompute_energy(folder, comm=MPI.COMM_WORLD, write=True):
 
     Returns:
         dict with the columns of :data:`ENERGY_COLUMNS` (arrays), ``max_rel_diff`` (the
-        largest |J_recomputed − J_timeseries| over the stored steps, relative to the
-        largest |J| of the time series), ``max_roundoff_ratio`` (the largest difference over
-        that step's round-off scale: O(eps) when the two agree to round-off),
+        largest |J_recomputed − J_timeseries| over the stored steps, relative to the largest
+        energy in play in the time series: |J|, the kinetic, |potential| or contact energy;
+        J alone stays 0 for a body starting at rest), ``max_roundoff_ratio`` (the largest
+        difference over that step's round-off scale: O(eps) when the two agree to round-off;
+        0 for a state whose scale is 0, the two energies then being exactly 0),
         ``stored_dtype`` and ``rows``.
     """
     info = read_info(folder, comm)
@@ -99,11 +101,21 @@ def _compare(cols, roundoff, ts):
     # a penalty or Nitsche run's energy column adds its contact_energy: compared without it
     mech = ts["energy"] - ts["contact_energy"] if "contact_energy" in ts else ts["energy"]
     ref = np.array([mech[pos[int(cols["step"][k])]] for k in rows])
-    scale = float(np.max(np.abs(ts["energy"]))) if len(ts["energy"]) else 1.0
+    # the energies in play, not |J| alone: J stays 0 for a body starting at rest (it gave 1.7 and "nan eps")
+    play = [np.max(np.abs(ts[c])) for c in ("energy", "kinetic", "potential", "contact_energy") if c in ts
+            and len(ts[c])]
+    scale = float(max(play, default=0.0))
     diff = np.abs(cols["energy"][rows] - ref)
-    return {"max_rel_diff": float(diff.max() / scale) if len(rows) else float("nan"),
-            "max_roundoff_ratio": float(np.max(diff / roundoff[rows])) if len(rows) else float("nan"),
+    return {"max_rel_diff": _ratio(diff.max(), scale) if len(rows) else float("nan"),
+            "max_roundoff_ratio": float(max(map(_ratio, diff, roundoff[rows]))) if len(rows) else float("nan"),
             "rows": len(rows)}
+
+
+def _ratio(diff, scale):
+    """diff / scale, with 0 / 0 = 0 (a state at rest and unloaded: both energies are exactly 0)."""
+    if scale > 0:
+        return float(diff / scale)
+    return 0.0 if diff == 0 else float("inf")
 
 
 def _csv_text(cols):

@@ -24,6 +24,7 @@ from mpi4py import MPI
 import numpy as np
 import numpy.typing as npt
 
+from sdm_dolfinx import compat
 from sdm_dolfinx.errors import SdmError
 from sdm_dolfinx.params import PARAM_TYPES as PARAM_TYPES  # noqa: F401  (declared once for problems and runs)
 from sdm_dolfinx.params import Param as Param
@@ -157,6 +158,14 @@ class Problem:
         if self.time is not None and (not hasattr(self.time, "value") or np.shape(self.time.value) != ()):
             raise ProblemInputError(f"problem {self.name!r}: time must be a scalar fem.Constant used by l(w) "
                                     f"(got {type(self.time).__name__})")
+        rho = self.rho
+        if isinstance(rho, bool) or not isinstance(rho, (int, float, np.integer, np.floating)) \
+                or not (np.isfinite(rho) and rho > 0):
+            raise ProblemInputError(f"problem {self.name!r}: rho must be a finite number > 0, the density of the mass "
+                                    f"forms rho u.w dx (got {rho!r})")
+        degenerate = degenerate_cells(self.mesh) if hasattr(self.mesh, "geometry") else None
+        if degenerate:
+            raise ProblemInputError(f"problem {self.name!r}: {degenerate}")
 
     def describe(self) -> dict[str, Any]:
         """Parameters with their units, as written to ``run.json`` (``args`` and ``source``
@@ -175,6 +184,46 @@ class Problem:
 
 class ProblemInputError(SdmError, ValueError):
     """Parameter values a problem refuses (the message may join several, with '; ')."""
+
+
+def label(problem: Any) -> str:
+    """How messages name a problem: its file (``problem file /path/my_block.py``), else its name."""
+    source = getattr(problem, "source", None)
+    return f"problem file {source}" if source else f"problem {problem.name!r}"
+
+
+#: a simplex whose measure is below this times its longest edge from its first vertex to the
+#: power of its dimension counts as degenerate (round-off of an exactly flat cell is ~1e-16)
+DEGENERATE_RTOL = 1e-12
+
+
+def degenerate_cells(msh: Any) -> Optional[str]:
+    """'N of its M cells have zero measure (one at (x, y))' for a simplex mesh with flat cells
+    (their mass and stiffness are singular: the run fails at step 0 with a NaN energy), else
+    None. Collective; checks the straight simplex of each cell's vertices (curved cells too)."""
+    tdim, gdim = msh.topology.dim, msh.geometry.dim
+    comm = msh.comm
+    ncells = msh.topology.index_map(tdim).size_local
+    nodes = compat.mesh_geometry_dofmap(msh)
+    simplex = compat.cell_name(msh) in ("interval", "triangle", "tetrahedron")
+    x = msh.geometry.x[:, :gdim]
+    bad = np.zeros(0, dtype=np.int64)
+    if simplex and ncells:
+        v = x[nodes[:ncells, :tdim + 1]]                       # (cells, tdim + 1, gdim): the vertices
+        J = v[:, 1:, :] - v[:, :1, :]                          # (cells, tdim, gdim)
+        if tdim == gdim:
+            measure = np.abs(np.linalg.det(J))
+        else:
+            measure = np.sqrt(np.maximum(np.linalg.det(np.einsum("cij,ckj->cik", J, J)), 0.0))
+        scale = np.max(np.linalg.norm(J, axis=2), axis=1) ** tdim
+        bad = np.flatnonzero(~(measure > DEGENERATE_RTOL * scale))
+    count, total = comm.allreduce(len(bad), op=MPI.SUM), comm.allreduce(ncells, op=MPI.SUM)
+    if not count:
+        return None
+    where = [x[nodes[bad[0], :tdim + 1]].mean(axis=0) if len(bad) else None]
+    where = next(w for w in comm.allgather(where[0]) if w is not None)
+    return (f"{count} of its {total} cells have zero measure (one at ({', '.join(f'{c:.6g}' for c in where)})): "
+            f"its mass and stiffness would be singular")
 
 
 def one_line(e: BaseException) -> str:
@@ -268,16 +317,21 @@ class ProblemSpec:
     def problem(self, comm: MPI.Comm = MPI.COMM_WORLD, **given: Any) -> Problem:
         """The Problem for these parameter values (the others at their defaults)."""
         values = self.values(given)
+        where = f"problem file {self.source}" if self.source else f"problem {self.name!r}"
         if self.source is None:
             prob = self.build(comm, **values)
         else:
             try:
                 prob = self.build(comm, **values)
-            except ProblemInputError:
-                raise
+            except ProblemInputError as e:      # its Problem refused (rho, cells, ...): name the file too
+                raise ProblemInputError(f"{where}{user_line(e, self.source)}: {e}") from None
             except Exception as e:      # a bug in the user's file: one line naming the file and line
-                raise ProblemInputError(f"problem file {self.source}{user_line(e, self.source)}: building "
+                raise ProblemInputError(f"{where}{user_line(e, self.source)}: building "
                                         f"{self.name!r} failed: {one_line(e)}") from None
+        if not isinstance(prob, Problem):
+            got = "None" if prob is None else f"a {type(prob).__name__}"
+            raise ProblemInputError(f"{where}: build(comm, ...) returned {got}, not a Problem"
+                                    + (" (a missing return?)" if prob is None else ""))
         # as run.json will hold them (lists, strings), so that a checkpoint's identity compares equal
         prob.args = {k: (str(v) if isinstance(v, Path) else list(v) if isinstance(v, tuple) else v)
                      for k, v in values.items()}

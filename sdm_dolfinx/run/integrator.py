@@ -25,7 +25,7 @@ from mpi4py import MPI
 import numpy as np
 
 from sdm_dolfinx.method import gaps as _gaps, iterative as _iterative, step_matrix as _step_matrix
-from sdm_dolfinx.contact import friction as _friction
+from sdm_dolfinx.contact import friction as _friction, friction_bound as _friction_bound
 from sdm_dolfinx.contact.context import StepContext
 from sdm_dolfinx import schemes
 from sdm_dolfinx.errors import StepError
@@ -251,7 +251,7 @@ class Integrator:
             else:
                 info = self.solver.solve(b, X, U.array[self.tdofs].copy())
         except VIError as e:
-            raise StepError(f"step {n + 1} (t = {t + self.dt:.6g}): {e}") from None
+            raise StepError(f"step {n + 1} (t = {t + self.dt:.6g}): {e}{self._coulomb_hint()}") from None
         comm = d.comm
         # a contact treatment imposes nothing (penetration is its model): +inf
         imposed = ts.imposed_gap(self, X) if self.treatment is None else float("inf")
@@ -262,6 +262,17 @@ class Integrator:
             self._friction_info(info, U.array, Un)
         info["gap_end"] = comm.allreduce(float(np.min(U.array[d.cdofs] - d.lb, initial=np.inf)), op=MPI.MIN)
         return info
+
+    def _coulomb_hint(self):
+        """A failed Coulomb step: the Coulomb bound of the step problem, measured now, and the
+        command that measures it before a run (:func:`.friction_bound.failure_hint`)."""
+        if self.friction is None or self.friction.law != "coulomb":
+            return ""
+        p, d = self.discretisation.problem, self.discretisation
+        which = f"--problem-file {p.source}" if p.source else f"--problem {p.name}"
+        command = (f"python -m sdm_dolfinx inspect {which} --pair {d.pair.name} --coulomb-bound --dt {self.dt:g}"
+                   + (f" --scheme {self.scheme}" if self.scheme != "midpoint" else "") + " with the run's parameters")
+        return _friction_bound.failure_hint(self, self.friction.mu, command)
 
     def _friction_info(self, info, u, un):
         """The step's tangential force, slip (U^{n+1} - U^n at the tangential dofs) and friction
@@ -289,6 +300,14 @@ class Integrator:
             return np.zeros(len(self.discretisation.cdofs))
         lam_t = self.solver.lam_t
         return lam_t if lam_t.ndim == 1 else np.linalg.norm(lam_t, axis=1)
+
+    @property
+    def lam_t_components(self):
+        """Tangential multipliers of the last step at the owned constrained vertices, signed: m in
+        2-D, m x 2 in 3-D (the tangential axes in increasing order; friction, else 0)."""
+        if self.friction is None:
+            return np.zeros(len(self.discretisation.cdofs))
+        return np.asarray(self.solver.lam_t)
 
     @property
     def slipping(self):

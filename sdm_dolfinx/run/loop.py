@@ -51,14 +51,16 @@ def execute(problem: Problem, options: Mapping[str, Any], *, out: Union[str, Pat
             extra_info: Optional[Mapping[str, Any]] = None, handle_signals: bool = False,
             on_step: Optional[OnStep] = None, observe: Optional[Callable[..., object]] = None,
             constraint_tol: float = 1e-8, folder_seen: Optional[Mapping[str, Any]] = None,
-            changed_source: Optional[list[str]] = None) -> Result:
+            changed_source: Optional[list[str]] = None, extended: Optional[list[dict[str, Any]]] = None) -> Result:
     """Run ``problem`` with the checked, complete flat run ``options``
     (:func:`sdm_dolfinx.run.options.complete`) from t = 0 to T: the body of
     :func:`sdm_dolfinx.run.simulate`, whose documentation says what the keywords do;
     ``folder_seen`` is ``{"run_id": ...}`` that :func:`sdm_dolfinx.io.folder.check_out` saw in
     ``out`` (None: no check), checked again once the folder is locked; ``changed_source`` (a
     restart allowed to continue with a changed problem file or package: what changed, in words)
-    relaxes the checkpoint's identity check for those and is recorded in run.json.
+    relaxes the checkpoint's identity check for those and is recorded in run.json, as is
+    ``extended`` (a restart: the run's extensions to a later T,
+    :func:`sdm_dolfinx.run.planning.extension`).
 
     Returns:
         :class:`Result`.
@@ -79,7 +81,8 @@ def execute(problem: Problem, options: Mapping[str, Any], *, out: Union[str, Pat
         if signum:
             raise Interrupted("interrupted during the set-up, before anything was written", signum)
         extra = {"run_options": run_options, **(extra_info or {}),
-                 **({"continued_with_changed_source": list(changed_source)} if changed_source else {})}
+                 **({"continued_with_changed_source": list(changed_source)} if changed_source else {}),
+                 **({"extended": list(extended)} if extended else {})}
         loop.open(out, restart, o["write_every"], extra, folder_seen)
         loop.run(stop, progress, on_step, o["checkpoint_every"], constraint_tol)
         return loop.finish()
@@ -192,7 +195,8 @@ class _Loop:
     def record(self, n, its, n_active, step=None):
         integ = self.integ
         row = self.series.record(n, n * self.dt, self.U, self.V, self.lam, its, n_active, step,
-                                 linear_its_total=integ.linear_its, slip=integ.slip)
+                                 linear_its_total=integ.linear_its,
+                                 slip=integ.slip_t if integ.friction is not None else None)
         if self.files is not None:
             self.files.row(row)
         if self.observe is not None:
@@ -202,7 +206,7 @@ class _Loop:
     def fields(self, n, lam):
         """Write the fields of step ``n`` (the state's, with the contact forces ``lam``)."""
         integ = self.integ
-        self.files.fields(n, self.U, self.V, lam, integ.lam_t if integ.friction is not None else None,
+        self.files.fields(n, self.U, self.V, lam, integ.lam_t_components if integ.friction is not None else None,
                           integ.slipping)
 
     def run(self, stop, progress, on_step, checkpoint_every, constraint_tol):
@@ -235,9 +239,9 @@ class _Loop:
                           f"[{last_print - self.wall0:.1f} s]", flush=True)
                 requested = bool(on_step(n + 1, row)) if on_step is not None else False
                 signum = stop.agreed(self.comm, requested)
-                if files is not None and checkpoint_every and ((n + 1) % checkpoint_every == 0
-                                                               or n + 1 == self.nsteps or signum):
-                    self.checkpoint(n + 1)
+                if files is not None and (checkpoint_every and ((n + 1) % checkpoint_every == 0 or signum)
+                                          or n + 1 == self.nsteps and not self.integ.stateful):
+                    self.checkpoint(n + 1)     # and at the end, whatever K: a finished run can be extended
                 if signum and n + 1 < self.nsteps:
                     self.interrupted(n + 1, signum, checkpointed=bool(checkpoint_every))
         except StepError as e:

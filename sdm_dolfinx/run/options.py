@@ -290,16 +290,7 @@ def _owned_errors(p: RunOption, owned_by: tuple[str, str], o: Mapping[str, Any],
 
 def _rules(o: Mapping[str, Any], label: Mapping[str, str]) -> list[str]:
     """Messages for combinations of options that cannot run together."""
-    errors: list[str] = []
-    dt, T = o.get("dt"), o.get("T")
-    if dt is not None and T is not None and not (_TABLE["dt"].complaints(dt) or _TABLE["T"].complaints(T)):
-        if T < dt:
-            errors.append(f"{label['T']} ({T}) must be >= {label['dt']} ({dt})")
-        elif T / dt > MAX_STEPS:
-            errors.append(f"T / dt = {T / dt:.3g} steps: at most {MAX_STEPS:.0e} (the time series alone would take "
-                          f"{T / dt * 100 / 1e9:.3g} GB)")
-        else:
-            errors += _check_whole_steps(T, dt)
+    errors: list[str] = _time_rules(o.get("T"), o.get("dt"), label)
     pair, mass = o.get("pair"), o.get("mass")
     if mass is not None and pair is not None and not _check_pair(pair, "pair"):
         pair = get_pair(pair) if isinstance(pair, str) else pair
@@ -313,6 +304,56 @@ def _rules(o: Mapping[str, Any], label: Mapping[str, str]) -> list[str]:
         errors += _friction.check_solver(o.get("friction"), o.get("vi_solver"), o.get("linear"))
     errors += _treatment_solver(o, label)
     return errors
+
+
+#: the command line's own options besides the run options (the run commands' and inspect's,
+#: cli/run.py, cli/inspect.py): no problem parameter may be named like one of these or a run option
+COMMAND_LINE_NAMES = ("out", "overwrite", "quiet", "config", "restart", "allow_changed_source", "problem",
+                      "problem_file", "help", "sweep", "coulomb_bound", "json", "png", "tol", "dense_max")
+
+
+def reserved_names() -> tuple[str, ...]:
+    """The names no problem parameter may take: every run option (the registered methods' too)
+    and :data:`COMMAND_LINE_NAMES` (a parameter's ``--option`` and TOML key would clash with them)."""
+    return (*names(), *COMMAND_LINE_NAMES)
+
+
+def check_problem_names(spec: Any) -> None:
+    """RunInputError naming the problem's file (or name) and the clash when one of ``spec``'s
+    parameters is named like a run option or an option of the command line."""
+    runs = {p.name: p.option for p in declarations()}
+    where = f"problem file {spec.source}" if spec.source else f"problem {spec.name!r}"
+    for p in spec.params:
+        for name in dict.fromkeys((p.name, p.option.replace("-", "_"))):
+            if name in runs:
+                clash = f"the run option --{runs[name]}"
+            elif name in COMMAND_LINE_NAMES:
+                clash = f"the command line's --{name.replace('_', '-')}"
+            else:
+                continue
+            raise RunInputError(f"{where}: parameter {p.name!r} (--{p.option}) is named like {clash}: rename it "
+                                f"(docs/add_a_problem.md lists the reserved names)")
+
+
+def check_time(T: Any, dt: float, cli: bool = False) -> None:
+    """RunInputError when the final time ``T`` is refused with the time step ``dt`` (a restart
+    extending a run to a later T: the other options are the run's, checked when it started)."""
+    label = {p.name: f"--{p.option}" if cli else p.name for p in TABLE}
+    errors = _TABLE["T"].check(T, label["T"]) or _time_rules(T, dt, label)
+    if errors:
+        raise RunInputError("; ".join(errors))
+
+
+def _time_rules(T: Any, dt: Any, label: Mapping[str, str]) -> list[str]:
+    """Messages for a final time ``T`` that the time step ``dt`` cannot reach in whole steps."""
+    if _TABLE["dt"].complaints(dt) or _TABLE["T"].complaints(T):
+        return []
+    if T < dt:
+        return [f"{label['T']} ({T}) must be >= {label['dt']} ({dt})"]
+    if T / dt > MAX_STEPS:
+        return [f"T / dt = {T / dt:.3g} steps: at most {MAX_STEPS:.0e} (the time series alone would take "
+                f"{T / dt * 100 / 1e9:.3g} GB)"]
+    return _check_whole_steps(T, dt)
 
 
 def _treatment_solver(o: Mapping[str, Any], label: Mapping[str, str]) -> list[str]:
@@ -339,10 +380,11 @@ def _check_whole_steps(T: float, dt: float) -> list[str]:
     n = num_steps(T, dt)
     if abs(n * dt - T) <= STEP_RTOL * T:
         return []
-    return [f"T = {_num(T)} is not a multiple of dt = {_num(dt)}: {n} steps end at t = {_num(n * dt)}; give "
-            f"T = {_num(n * dt)} or {_num((n + 1) * dt)}"]
+    return [f"T = {num(T)} is not a multiple of dt = {num(dt)}: {n} steps end at t = {num(n * dt)}; give "
+            f"T = {num(n * dt)} or {num((n + 1) * dt)}"]
 
 
-def _num(x: float) -> str:
+def num(x: float) -> str:
     """A time for messages: 0.009, not 0.009000000000000001."""
     return f"{x:.12g}"
+

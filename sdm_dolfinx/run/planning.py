@@ -43,6 +43,8 @@ class RunPlan:
     folder_seen: Optional[dict[str, Any]] = None
     #: a restart allowed to continue with a changed problem file or package: what changed
     changed_source: Optional[list[str]] = None
+    #: the run's extensions to a later T (run.json's ``extended``), this restart's last
+    extended: Optional[list[dict[str, Any]]] = None
 
     @property
     def steps(self) -> int:
@@ -57,7 +59,7 @@ class RunPlan:
         return execute(problem, self.options, out=self.out, restart=self.restart, progress=progress,
                        handle_signals=handle_signals, on_step=on_step, petsc_options=petsc_options,
                        extra_info=extra_info, observe=observe, constraint_tol=constraint_tol,
-                       folder_seen=self.folder_seen, changed_source=self.changed_source)
+                       folder_seen=self.folder_seen, changed_source=self.changed_source, extended=self.extended)
 
 
 def plan(problem: Union[ProblemSpec, str, Path, None] = None, params: Optional[Mapping[str, Any]] = None,
@@ -98,6 +100,7 @@ def check_run(problem: Union[ProblemSpec, str, Path, None], params: Optional[Map
             return _restart_plan(out, given, comm, problem, params, allow_changed_source, cli)
         assert problem is not None          # refused above
         spec = resolve(problem)
+        run_options.check_problem_names(spec)
         values = spec.values(params, cli=cli)
     except (ProblemInputError, RunFolderError) as e:
         raise RunInputError(str(e)) from None
@@ -162,8 +165,6 @@ def _restart_plan(out: Optional[Folder], given: Mapping[str, Any], comm: MPI.Com
         raise RunFolderError(f"a restart continues the run with its own parameters; remove params "
                              f"({', '.join(params)})")
     info = read_info(out, comm)
-    if info.get("status") == "finished":
-        raise RunFolderError(f"{out}: that run is already finished")
     if "run_options" not in info or "args" not in info.get("problem", {}):
         raise RunFolderError(f"{out}/run.json does not say how the run was started (written by an older version "
                              f"or by a problem built by hand): it cannot be continued")
@@ -182,12 +183,16 @@ def _restart_plan(out: Optional[Folder], given: Mapping[str, Any], comm: MPI.Com
     saved = run_options.complete({k: v for k, v in saved.items() if k in known})
     # a run.json from before the option: its forms had UFL's estimated degrees
     saved["quadrature_degree"] = info["run_options"].get("quadrature_degree", quadrature.ESTIMATED)
+    if given.get("T") is not None:
+        run_options.check_time(given["T"], saved["dt"], cli)   # a later T: a whole number of the run's steps
+    extended = extension(info, given.get("T"), out, cli)
     changed = [f"{k} = {v!r} (the run has {saved.get(k)!r})" for k, v in given.items()
-               if k not in RESTART_MAY_CHANGE and v != saved.get(k)]
+               if k not in (*RESTART_MAY_CHANGE, "T") and v != saved.get(k)]
     if changed:
         raise RunFolderError(f"a restart continues the run as it was started; it cannot change "
-                             f"{', '.join(changed)} (only {', '.join(RESTART_MAY_CHANGE)} may change)")
-    saved.update({k: v for k, v in given.items() if k in RESTART_MAY_CHANGE and v is not None})
+                             f"{', '.join(changed)} (only {', '.join(RESTART_MAY_CHANGE)} may change, and T to a "
+                             f"later one)")
+    saved.update({k: v for k, v in given.items() if k in (*RESTART_MAY_CHANGE, "T") and v is not None})
     saved["quadrature_degree"] = quadrature.of_run(info)      # the degree it used (the automatic choice may change)
     try:
         spec = spec_of_run(info["problem"])
@@ -196,7 +201,34 @@ def _restart_plan(out: Optional[Folder], given: Mapping[str, Any], comm: MPI.Com
     except ProblemInputError as e:
         raise RunFolderError(f"{out}: {e}") from None
     return RunPlan(spec, spec.values(info["problem"]["args"]), saved, out, restart=True,
-                   changed_source=sources or None)
+                   changed_source=sources or None, extended=extended)
+
+
+def extension(info: Mapping[str, Any], T: Optional[float], out: Any, cli: bool = False) -> Optional[list[dict[str, Any]]]:
+    """run.json's ``extended`` for a restart of the run ``info`` (its run.json) to the final
+    time ``T`` (None: the run's own): the run's earlier extensions, and this one when ``T`` is
+    later than the run's T (None when there are none). A finished run continues only to a
+    later T, and no restart shortens a run.
+
+    Raises:
+        RunFolderError: ``T`` is not later than the run's T (or not given for a finished run).
+    """
+    before = list(info.get("extended") or [])
+    recorded = (info.get("run_options") or {}).get("T", info.get("T"))
+    finished = info.get("status") == "finished"
+    if recorded is None or (T in (None, recorded) and not finished):
+        return before or None
+    if T is None:
+        how = f"--restart {out} --T LATER" if cli else "restart=True with a later T"
+        raise RunFolderError(f"{out}: that run is already finished at T = {run_options.num(recorded)}; to extend "
+                             f"it: {how}")
+    if not T > recorded:
+        raise RunFolderError(f"{'--T ' if cli else 'T = '}{run_options.num(T)} is not later than the run's T = "
+                             f"{run_options.num(recorded)}: a restart continues a run to its T, or extends it to a "
+                             f"later one")
+    recorded_options: Mapping[str, Any] = info.get("run_options") or {}
+    dt = float(recorded_options["dt"] if "dt" in recorded_options else info["dt"])
+    return before + [{"from_T": recorded, "from_step": num_steps(recorded, dt), "to_T": T}]
 
 
 def source_changes(info: Mapping[str, Any]) -> list[str]:

@@ -72,3 +72,9 @@ class ConstraintProbe:
         """``values`` (one per owned constrained vertex) at the probe's vertex, on every rank."""
         val = values[self.index] if self.index >= 0 else 0.0
         return self.comm.allreduce(float(val), op=MPI.SUM)
+
+    def at_components(self, values: npt.NDArray[np.float64], k: int) -> list[float]:
+        """The row of ``values`` (m x k: k per owned constrained vertex) at the probe's vertex, on
+        every rank."""
+        val = np.asarray(values[self.index], dtype=float).reshape(k) if self.index >= 0 else np.zeros(k)
+        return self.comm.allreduce(val, op=MPI.SUM)

@@ -11,6 +11,7 @@ from mpi4py import MPI
 import numpy as np
 import numpy.typing as npt
 
+from sdm_dolfinx.contact import friction as _friction
 from sdm_dolfinx.errors import StepError
 from sdm_dolfinx.method import gaps
 
@@ -28,8 +29,21 @@ BASE_COLUMNS = ("step", "t", "energy", "kinetic", "potential", "u_probe", "lambd
 #: the columns of a run with friction (docs/outputs.md): the step's sum of the tangential
 #: multipliers, the slip U^{n+1} - U^n of the probe's constrained vertex along the tangent, the
 #: cumulative friction dissipation -sum_steps lam_T . (U^{n+1} - U^n)_t (>= 0), the numbers of
-#: sticking and slipping vertices (the step solver's sets)
+#: sticking and slipping vertices (the step solver's sets); in 3-D the first two are written per
+#: tangential axis, signed (:func:`friction_columns`)
 FRICTION_COLUMNS = ("tangential_force", "slip_probe", "dissipated", "n_stick", "n_slip")
+
+
+def friction_columns(problem: Problem) -> tuple[str, ...]:
+    """The friction columns of ``problem``'s time series: :data:`FRICTION_COLUMNS` in 2-D (the one
+    tangential component, signed); in 3-D ``tangential_force`` and ``slip_probe`` become one signed
+    column per tangential axis, e.g. ``tangential_force_x``, ``tangential_force_y`` for a body
+    bounded in z (a single column would be the vector's size, unsigned)."""
+    axes = _friction.tangential_axes(problem)
+    if len(axes) < 2:
+        return FRICTION_COLUMNS
+    names = ["xyz"[c] for c in axes]
+    return (*(f"tangential_force_{a}" for a in names), *(f"slip_probe_{a}" for a in names), *FRICTION_COLUMNS[2:])
 #: the column of a run whose contact is not exact (penalty, Nitsche): the energy stored in the
 #: contact term at U^{n+1} (``Integrator.contact_energy``); ``energy`` includes it
 CONTACT_ENERGY = "contact_energy"
@@ -51,6 +65,23 @@ class BoundaryGapWarning(UserWarning):
     """The constrained boundary sinks below the bound between constrained vertices (P2 mid-edge
     nodes): one line on rank 0, once per run; silence it with ``warnings.simplefilter("ignore",
     BoundaryGapWarning)``."""
+
+
+#: |J^0| below this times the largest energy in play is round-off of it (:func:`energy_scale`)
+ENERGY_SCALE_RTOL = 1e-12
+
+
+def energy_scale(series: Mapping[str, Any]) -> float:
+    """The scale of a time series' energy ``J``: |J^0|, or, when that is 0 or below
+    :data:`ENERGY_SCALE_RTOL` times the largest energy in play (max over the steps of |J|, the
+    kinetic energy, |potential|, the contact energy), that largest energy: a body starting at
+    rest has J^0 = 0, and its J stays at round-off while its kinetic energy grows."""
+    E = np.asarray(series["energy"], dtype=float)
+    if not E.size:
+        return 0.0
+    play = max(float(np.max(np.abs(np.asarray(series[c], dtype=float))))
+               for c in ("energy", "kinetic", "potential", CONTACT_ENERGY) if c in series)
+    return abs(float(E[0])) if abs(float(E[0])) > ENERGY_SCALE_RTOL * play else play
 
 
 def num_steps(T: float, dt: float) -> int:
@@ -93,9 +124,9 @@ class TimeSeries:
         self.formulation, self.problem, self.probe, self.cprobe = formulation, problem, probe, cprobe
         self.discretisation = d = discretisation
         boundary = (BOUNDARY_GAP,) if d.num_boundary_dofs else ()
-        friction_columns = FRICTION_COLUMNS if friction else ()
+        friction_cols = friction_columns(problem) if friction else ()
         contact = (CONTACT_ENERGY,) if contact_energy else ()
-        self.columns: tuple[str, ...] = (BASE_COLUMNS + contact + tuple(problem.extra_columns) + friction_columns
+        self.columns: tuple[str, ...] = (BASE_COLUMNS + contact + tuple(problem.extra_columns) + friction_cols
                                          + boundary)
         self.data = {c: np.zeros(nsteps + 1) for c in self.columns}
         self.comm = problem.mesh.comm
@@ -127,7 +158,7 @@ class TimeSeries:
             row["momentum_y"] = f.momentum(V, self.problem.momentum_component)
         if "momentum_x" in self.columns:
             row["momentum_x"] = f.momentum(V, 0)
-        if "tangential_force" in self.columns:
+        if "dissipated" in self.columns:
             self._friction_row(row, n, step or {}, slip)
         if "elastic" in self.columns:            # 1/2 U^T A U = potential + U^T L
             row["elastic"] = pot + U.dot(f.load(t))
@@ -143,15 +174,21 @@ class TimeSeries:
 
     def _friction_row(self, row: Row, n: int, step: Mapping[str, Any],
                       slip: Optional[npt.NDArray[np.float64]]) -> None:
-        """The friction columns of row ``n`` (0 in row 0; ``dissipated`` accumulates)."""
+        """The friction columns of row ``n`` (0 in row 0; ``dissipated`` accumulates); ``slip``: the
+        step's slip at the owned constrained vertices (m, or m x 2 in 3-D)."""
         before = self.data["dissipated"][n - 1] if n > 0 else 0.0
-        slip_probe = 0.0
-        if step:
-            assert slip is not None, "a step with friction has its slip (Integrator.slip)"
-            slip_probe = self.cprobe.at(slip)
-        row.update(tangential_force=step.get("tangential_force", 0.0), slip_probe=slip_probe,
-                   dissipated=before - step.get("friction_work", 0.0),
+        row.update(dissipated=before - step.get("friction_work", 0.0),
                    n_stick=step.get("n_stick", 0), n_slip=step.get("n_slip", 0))
+        if "tangential_force" in self.columns:
+            row.update(tangential_force=step.get("tangential_force", 0.0),
+                       slip_probe=self.cprobe.at(slip) if step and slip is not None else 0.0)
+            return
+        forces = [c for c in self.columns if c.startswith("tangential_force_")]
+        slips = [c for c in self.columns if c.startswith("slip_probe_")]
+        force = step.get("tangential_force_t", [0.0] * len(forces))
+        at = self.cprobe.at_components(slip, len(slips)) if step and slip is not None else [0.0] * len(slips)
+        row.update(zip(forces, map(float, force)))
+        row.update(zip(slips, map(float, at)))
 
     def _warn(self, n: int, t: float, U: PETSc.Vec, gap: float) -> None:
         """A :class:`BoundaryGapWarning` on rank 0, once per run, when the constrained boundary sinks
@@ -211,41 +248,68 @@ class Result:
     V: Optional[PETSc.Vec] = None
     discretisation: Optional[Discretisation] = None
 
-    def _discretisation(self) -> Discretisation:
-        """:attr:`discretisation` (ValueError for a Result built without one)."""
-        if self.discretisation is None:
-            raise ValueError("this Result has no discretisation (it was built without the run's final state)")
-        return self.discretisation
+    def __post_init__(self) -> None:
+        """The final fields as dolfinx Functions, made now (collective: a Result is made on every
+        rank), so that :meth:`displacement`, :meth:`velocity` and :meth:`vbar` are not: each
+        returns a copy, which any one rank may ask for (creating a Function, or updating its
+        ghosts, is collective in dolfinx: called on rank 0 only, they hung)."""
+        self._fields: dict[str, fem.Function] = {}
+        d = self.discretisation
+        if d is None or self.U is None or self.V is None:
+            return
+        self._fields["displacement"] = self._function(d.W, self.U, "displacement")
+        if d.mass == "consistent":
+            self._fields["velocity"] = self._function(d.H, self.V, "velocity")
+        elif d.H is None:
+            self._fields["velocity"] = self._function(d.W, self.V, "velocity")
+        else:
+            v = d.physical_velocity(self.V, d.B.createVecLeft())
+            self._fields["velocity"] = self._function(d.H, v, "velocity")
+            v.destroy()
+        if d.mass != "consistent":
+            self._fields["Vbar_W"] = self._function(d.W, self.V, "Vbar_W")
 
     def displacement(self) -> fem.Function:
-        """The final displacement U as a dolfinx Function of W^h (for plotting, probing, post-processing)."""
-        return self._function(self._discretisation().W, self.U, "displacement")
+        """The final displacement U as a dolfinx Function of W^h (for plotting, probing,
+        post-processing): a new copy at each call, on any rank (not collective)."""
+        return self._copy("displacement")
 
     def velocity(self) -> fem.Function:
         """The final physical velocity as a dolfinx Function: v_h = C^-1 B Vbar in H^h (C as the
         run treats it: diagonal for P0, lumped for P1), V in H^h for the consistent block
-        variant, Vbar in W^h for the standard method (H^h = W^h). The XDMF's ``velocity``."""
-        d = self._discretisation()
-        if d.mass == "consistent":
-            return self._function(d.H, self.V, "velocity")
-        if d.H is None:
-            return self._function(d.W, self.V, "velocity")
-        return self._function(d.H, d.physical_velocity(self.V, d.B.createVecLeft()), "velocity")
+        variant, Vbar in W^h for the standard method (H^h = W^h). The XDMF's ``velocity``. A
+        new copy at each call, on any rank (not collective)."""
+        return self._copy("velocity")
 
     def vbar(self) -> fem.Function:
         """The final Vbar in W^h, the scheme's M-formulation vector (the XDMF's ``Vbar_W``): only
         M Vbar is determined by the scheme; with a singular M (dim H^h < dim W^h) Vbar also has a
         component in Ker(M) that carries no kinetic energy (see docs/outputs.md). ValueError for
-        the consistent block variant, which has no Vbar."""
-        d = self._discretisation()
-        if d.mass == "consistent":
+        the consistent block variant, which has no Vbar. A new copy at each call, on any rank."""
+        if self.discretisation is not None and self.discretisation.mass == "consistent":
             raise ValueError("the (U, V) block system (--mass consistent) has no Vbar: its velocity is in H^h")
-        return self._function(d.W, self.V, "Vbar_W")
+        return self._copy("Vbar_W")
+
+    def _copy(self, name: str) -> fem.Function:
+        if name not in self._fields:
+            raise ValueError("this Result holds no final state (U, V and the discretisation)")
+        f: fem.Function = self._fields[name].copy()      # rank-local: the copy shares the space's ghost layout
+        f.name = name
+        return f
 
     def max_energy_deviation(self) -> float:
-        """max_n |J^n - J^0| / |J^0| of the discrete energy (Theorem 2: 0 for the midpoint scheme without impact)."""
+        """max_n |J^n - J^0| / scale of the discrete energy (Theorem 2: 0 for the midpoint scheme
+        without impact). The scale is |J^0|, or, when J^0 is 0 or round-off of the energies in play
+        (a body starting at rest: J stays 0 while gravity turns potential into kinetic energy), the
+        largest of those: :func:`energy_scale`. 0.0 when nothing moves (every energy 0)."""
         E = np.asarray(self.timeseries["energy"])
-        return float(np.max(np.abs(E - E[0])) / abs(E[0])) if E.size and E[0] != 0 else float("nan")
+        if not E.size:
+            return float("nan")
+        deviation = float(np.max(np.abs(E - E[0])))
+        scale = energy_scale(self.timeseries)
+        if scale == 0.0:
+            return 0.0 if deviation == 0.0 else float("inf")
+        return deviation / scale
 
     @staticmethod
     def _function(space: fem.FunctionSpace, vec: PETSc.Vec, name: str) -> fem.Function:

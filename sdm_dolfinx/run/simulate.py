@@ -14,7 +14,8 @@ from sdm_dolfinx.problems import Problem, ProblemSpec
 from sdm_dolfinx.run import options as run_options
 from sdm_dolfinx.run.loop import execute
 from sdm_dolfinx.run.options import RunInputError
-from sdm_dolfinx.run.planning import Folder, check_folder, check_run
+from sdm_dolfinx.io.folder import RunFolderError, read_info
+from sdm_dolfinx.run.planning import Folder, check_folder, check_run, extension
 from sdm_dolfinx.run.result import OnStep, Result
 from sdm_dolfinx.solvers.options import unknown_option
 
@@ -46,8 +47,8 @@ def simulate(problem: Union[Problem, ProblemSpec, str, Path, None] = None, param
             or None: nothing written. A folder holding a run is refused unless ``overwrite``.
         overwrite: replace the run in ``out``.
         restart: continue the run in ``out`` from its checkpoint (same problem, parameters, options
-            and ranks; only ``checkpoint_every`` may differ).
-        allow_changed_source: with ``restart``, continue although the problem file or the package's
+            and ranks; only ``checkpoint_every`` may differ, and ``T`` to a later one: a finished run is
+            extended so). ``allow_changed_source``: continue although the problem file or the package's
             version changed since the run started (refused otherwise); run.json records what changed.
         comm: the ranks of a declared problem (default ``MPI.COMM_WORLD``); a Problem's are its mesh's.
         pair, scheme, dt, T, mass, vi_solver, linear, quadrature_degree, friction, constrain, contact,
@@ -110,7 +111,7 @@ def _refuse_early(petsc_options: Optional[Mapping[str, Any]], allow_changed_sour
         raise RunInputError("allow_changed_source is for a restart only (restart=True)")
 
 
-def _run_built(problem: Problem, params: Optional[Mapping[str, Any]], given: Mapping[str, Any], out: Optional[Folder],
+def _run_built(problem: Problem, params: Optional[Mapping[str, Any]], given: dict[str, Any], out: Optional[Folder],
                overwrite: bool, restart: bool, comm: Optional[MPI.Comm], session: dict[str, Any]) -> Result:
     """:func:`simulate` of a built Problem: the same checks but of its parameters (built already)."""
     if params:
@@ -120,10 +121,27 @@ def _run_built(problem: Problem, params: Optional[Mapping[str, Any]], given: Map
         raise RunInputError(f"comm is not the ranks of problem {problem.name!r}'s mesh: leave it out")
     if restart and overwrite:
         raise RunInputError("a restart continues the run in out; remove overwrite")
+    extended = _extension(out, given, problem.mesh.comm) if restart else None
     opts = run_options.complete(given)
     run_options.check(opts)
     seen = None if restart else check_folder(out, overwrite, problem.mesh.comm)
-    return execute(problem, opts, out=out, restart=restart, folder_seen=seen, **session)
+    return execute(problem, opts, out=out, restart=restart, folder_seen=seen, extended=extended, **session)
+
+
+def _extension(out: Optional[Folder], given: dict[str, Any], comm: MPI.Comm) -> Optional[list[dict[str, Any]]]:
+    """A built Problem's restart: the run's extensions to a later T (``given["T"]``; not given:
+    the run's own T, set in ``given``); RunInputError for a T not later than the run's."""
+    try:
+        info = read_info(out, comm) if out is not None else None
+    except RunFolderError:          # the checkpoint's check says what is missing
+        return None
+    if not info or "T" not in (info.get("run_options") or {}):
+        return None
+    given.setdefault("T", info["run_options"]["T"])
+    try:
+        return extension(info, given["T"], out)
+    except RunFolderError as e:
+        raise RunInputError(str(e)) from None
 
 
 def launch(problem: Union[Problem, ProblemSpec, str, Path, None] = None,

@@ -9,6 +9,9 @@ from sdm_dolfinx import cli
 
 COMM = MPI.COMM_WORLD
 
+PENALTY_TOO_LARGE = "--penalty: must be at most 1e+12 (above, the springs' compliance 1/penalty is lost"
+GAMMA0_TOO_LARGE = "--nitsche-gamma0: must be at most 1e+06 (above, a step's Newton residual stalls"
+
 # (argv, expected fragment of the one-line message)
 BAD = [
     (["rod1d", "--hht-alpha", "-0.2"], "--hht-alpha is a parameter of scheme hht, not of scheme midpoint"),
@@ -27,6 +30,14 @@ BAD = [
     (["rod1d", "--scheme", "paoli-schatzman"], "needs M^-1"),
     (["rod1d", "--constrain", "nodes"], "constrain='nodes' is constrain='vertices'"),
     (["rod1d", "--pair", "P1/P1", "--mass", "consistent"], "mass consistent is not available for P1/P1"),
+    # out of the range where the treatment still means what it says (the reason is in the message)
+    (["rod1d", "--contact", "penalty", "--penalty", "1e13"], PENALTY_TOO_LARGE),
+    (["rod1d", "--contact", "penalty", "--penalty", "1e308"], PENALTY_TOO_LARGE),
+    (["rod1d", "--contact", "nitsche", "--nitsche-gamma0", "1e7"], GAMMA0_TOO_LARGE),
+    (["rod1d", "--contact", "nitsche", "--nitsche-gamma0", "1e308"], GAMMA0_TOO_LARGE),
+    # a misspelt option is named first, not the option it leaves without its owner
+    (["block", "--fricton", "coulomb", "--mu", "0.2"], "unrecognised option '--fricton'; did you mean --friction?"),
+    (["block", "--contact", "penalty", "--penalti", "10"], "unrecognised option '--penalti'; did you mean --penalty?"),
 ]
 
 
@@ -38,3 +49,30 @@ def test_method_options_refused_in_one_line(argv, fragment, mpi_tmp_path, capsys
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and "error:" in err[0] and fragment in err[0], err
     assert not (out / "timeseries.csv").exists()
+
+
+def test_the_bounds_say_why_through_the_api():
+    from sdm_dolfinx import simulate
+    from sdm_dolfinx.run import RunInputError
+    with pytest.raises(RunInputError, match=r"^penalty must be at most 1e\+12 \(above, .*round-off.*\(got 1e\+13\)$"):
+        simulate("rod1d", T=0.1, contact="penalty", contact_options={"penalty": 1e13})
+    with pytest.raises(RunInputError, match=r"^nitsche_gamma0 must be at most 1e\+06 \(above, .*1e-8.*\(got 1e\+09\)$"):
+        simulate("rod1d", T=0.1, contact="nitsche", contact_options={"nitsche_gamma0": 1e9})
+
+
+def test_coulomb_failure_names_the_bound(mpi_tmp_path, capsys):
+    """The block's Coulomb step problem with mu = 3 fails at step 1: the one line says mu is above
+    the bound measured as inspect --coulomb-bound measures it, and names that command (it said
+    only that Newton did not converge)."""
+    import re
+    from sdm_dolfinx.analysis.coulomb_bound import coulomb_bound
+    from sdm_dolfinx.problems import block
+    out = mpi_tmp_path / "run"
+    assert cli.main(["block", "--friction", "coulomb", "--mu", "3", "--out", str(out), "--quiet"]) == 1
+    err = capsys.readouterr().err
+    bound = coulomb_bound(block.problem(), "P2/P1", 1e-4)["mu_c"]
+    if COMM.rank == 0:
+        assert len(err.strip().splitlines()) == 1 and err.startswith("python -m sdm_dolfinx block: error: step 1 "), err
+        m = re.search(r"mu = 3 is above (\S+), the largest Coulomb coefficient", err)
+        assert m and float(m.group(1)) == float(f"{bound:.3g}"), err
+        assert "inspect --problem block --pair P2/P1 --coulomb-bound --dt 0.0001" in err

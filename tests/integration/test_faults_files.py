@@ -157,8 +157,9 @@ def test_a_file_deleted_during_the_run_stops_it_in_one_line(mpi_tmp_path, name):
     i = read_json(out / "run.json")
     assert i["status"] == "failed" and i["error"] == msg
     # noticed at the next write of that file: a row (13), the checkpoint of step 14 (the HDF5
-    # files' sizes), the fields of step 15 (the XML)
-    last = {"timeseries.csv": 12, "solution.h5": 14, "state.h5": 14, "solution.xdmf": 15}[name]
+    # files' sizes), the fields of step 15 (the XML: step 15's row and state.h5 row are taken
+    # back out, so every file ends at step 14; it ended at 15 with state.h5 at 10)
+    last = {"timeseries.csv": 12, "solution.h5": 14, "state.h5": 14, "solution.xdmf": 14}[name]
     assert i["last_good_step"] == last
     if COMM.rank == 0:
         from sdm_dolfinx.io.xdmf_reader import read_xdmf
@@ -167,6 +168,10 @@ def test_a_file_deleted_during_the_run_stops_it_in_one_line(mpi_tmp_path, name):
             assert len((out / "timeseries.csv").read_text().splitlines()) == last + 2
         if name not in ("solution.xdmf", "solution.h5"):
             assert np.isclose(read_xdmf(out).times[-1], 10 * 2e-3)
+        if name != "state.h5":
+            import h5py
+            with h5py.File(out / "state.h5") as h5:
+                assert list(h5["step"][:]) == [0, 5, 10]
         for other in {"solution.h5", "state.h5"} - {name}:
             assert readable_h5(out / other)
 
@@ -358,3 +363,69 @@ def test_a_run_started_between_the_check_and_the_lock_is_not_overwritten(mpi_tmp
         second.run()
     saved = read_info(out)
     assert saved["status"] == "finished" and saved["run_id"] == done.info["run_id"]
+
+
+# ------------------------------------- a full disc at any write of a step: consistent files
+def _fail_when_armed(monkeypatch, where):
+    """ENOSPC at rank 0's next write into ``where`` ("state.h5", "solution.h5": a byte of its HDF5
+    session, after others went through; "solution.xdmf": the XML) once armed (``arm[0] = True``)."""
+    import errno
+    import os
+    from sdm_dolfinx.io import journal, xdmf_writer
+    arm = [False]
+    full = OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+    if where == "solution.xdmf":
+        orig_text = xdmf_writer.atomic_write_text
+
+        def text(path, *args, **kwargs):
+            if arm[0] and str(path).endswith(where):
+                raise full
+            return orig_text(path, *args, **kwargs)
+        monkeypatch.setattr(xdmf_writer, "atomic_write_text", text)
+        return arm
+    orig, calls = journal._pwrite_all, [0]
+
+    def pwrite(fd, data, off):
+        if arm[0] and os.readlink(f"/proc/self/fd/{fd}").endswith(where):
+            calls[0] += 1
+            if calls[0] > 2:                # a few writes go through first: the session has changed the file
+                raise full
+        return orig(fd, data, off)
+    monkeypatch.setattr(journal, "_pwrite_all", pwrite)
+    return arm
+
+
+@pytest.mark.parametrize("where", ["state.h5", "solution.h5", "solution.xdmf"])
+@pytest.mark.parametrize("write_every", [1, 5])
+def test_full_disc_leaves_every_file_at_the_last_good_step(mpi_tmp_path, monkeypatch, where, write_every):
+    """The disc fills while the fields of step 15 are written (state.h5, solution.h5 or the XDMF
+    text): timeseries.csv, state.h5 and solution.xdmf all end at step 14, the last good step
+    run.json names, or at the last step written before it (timeseries.csv held step 15 and
+    state.h5 did not); the restart is the uninterrupted run."""
+    out, ref = mpi_tmp_path / "run", mpi_tmp_path / "ref"
+    kw = {**KW, "write_every": write_every}
+    simulate(membrane.problem(N=6), out=ref, checkpoint_every=7, **kw)
+    with monkeypatch.context() as m:
+        arm = _fail_when_armed(m, where)
+
+        def on_step(n, row):
+            arm[0] = n == 14 and COMM.rank == 0
+        with pytest.raises(RunFileError) as e:
+            simulate(membrane.problem(N=6), out=out, checkpoint_every=7, on_step=on_step, **kw)
+    assert e.value.no_space and "no space left on device while writing" in str(e.value)
+    i = read_json(out / "run.json")
+    assert i["status"] == "failed" and i["last_good_step"] == 14
+    if COMM.rank == 0:
+        import h5py
+        from sdm_dolfinx.io.checkpoint import readable_h5
+        from sdm_dolfinx.io.xdmf_reader import read_xdmf
+        assert readable_h5(out / "solution.h5") and readable_h5(out / "state.h5")
+        steps = np.loadtxt(out / "timeseries.csv", delimiter=",", skiprows=1)[:, 0]
+        assert np.array_equal(steps, np.arange(15))
+        due = [s for s in range(15) if s % write_every == 0]
+        with h5py.File(out / "state.h5") as h5:
+            assert list(h5["step"][:]) == due
+        assert np.allclose(read_xdmf(out).times, np.array(due) * 2e-3, rtol=0, atol=1e-12)
+    simulate(membrane.problem(N=6), out=out, restart=True, checkpoint_every=7, **kw)
+    if COMM.rank == 0 and COMM.size == 1:
+        assert_same_run(ref, out)

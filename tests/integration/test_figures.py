@@ -165,6 +165,7 @@ def test_up_to_date_runs_are_recognised(mpi_tmp_path):
         info = json.loads((folder / "run.json").read_text())
         info["status"] = "interrupted"
         (folder / "run.json").write_text(json.dumps(info))
+        (folder / "checkpoint.npz").unlink()            # the one every run writes at its end
         assert study_runs.run_state(folder, run, COMM.size) == "stale"
         (folder / "checkpoint.npz").write_bytes(b"")
         assert study_runs.run_state(folder, run, COMM.size) == "resumable"

@@ -1,0 +1,57 @@
+"""A Problem's data where the discretisation reads it, refused in one line naming the problem's
+file (or name) on every rank when it cannot make a run: constraint vertices that are not the
+mesh's, a bound that is not one finite number per point, an initial state that is not finite.
+(Without these checks they failed at step 0 with a NaN energy, or as an internal error.)"""
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import numpy as np
+
+from sdm_dolfinx.method.errors import DiscretisationError
+from sdm_dolfinx.problems.base import label
+
+
+def refuse(problem, comm, wrong):
+    """DiscretisationError on every rank when any rank found the problem's data ``wrong`` (a
+    message; None: fine here)."""
+    found = [m for m in comm.allgather(wrong) if m]
+    if found:
+        raise DiscretisationError(f"{label(problem)}: {found[0]}")
+
+
+def vertices(problem, comm):
+    """``problem.constraint_vertices(mesh)``: local vertex indices (0 .. owned + ghost vertices - 1)."""
+    msh = problem.mesh
+    verts = np.asarray(problem.constraint_vertices(msh))
+    nall = msh.topology.index_map(0).size_local + msh.topology.index_map(0).num_ghosts
+    wrong = None
+    if verts.size and not np.issubdtype(verts.dtype, np.integer):
+        wrong = f"constraint_vertices returned {verts.dtype} values, not vertex indices (integers)"
+    elif verts.size and (verts.min() < 0 or verts.max() >= nall):
+        wrong = (f"constraint_vertices returned vertex indices outside 0..{nall - 1}, the mesh's local vertices "
+                 f"(got {int(verts.min())}..{int(verts.max())})")
+    refuse(problem, comm, wrong)
+    return verts.astype(np.int32).reshape(-1)
+
+
+def bound(problem, x, comm):
+    """``problem.lower_bound(x)`` at the points ``x`` (3, n): n finite numbers."""
+    lb = np.asarray(problem.lower_bound(x))
+    wrong = None
+    if lb.shape != (x.shape[1],):
+        wrong = (f"lower_bound returned an array of shape {lb.shape} for x of shape {x.shape}; it must return "
+                 f"shape ({x.shape[1]},), the bound at each point")
+    elif not np.all(np.isfinite(lb)):
+        bad = ~np.isfinite(lb)
+        wrong = f"lower_bound returned non-finite values ({lb[bad][0]}) at {int(np.sum(bad))} point(s)"
+    refuse(problem, comm, wrong)
+    return lb.astype(PETSc.ScalarType)
+
+
+def initial_finite(problem, U, V, comm):
+    """The interpolants of ``u0`` and ``v0`` (PETSc vectors U, V) are finite."""
+    for name, vec in (("u0", U), ("v0", V)):
+        bad = comm.allreduce(int(np.sum(~np.isfinite(vec.array))), op=MPI.SUM)
+        if bad:
+            raise DiscretisationError(f"{label(problem)}: {name} gives non-finite values (nan or inf) at {bad} dof(s) "
+                                      f"of W^h")
