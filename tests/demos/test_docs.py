@@ -56,8 +56,11 @@ def test_named_paths_exist(page):
         p = p.rstrip(".,;:)")
         if any(c in p for c in "*{}<>") or "/output" in p or "/my_" in p:
             continue
+        p, _, test = p.partition("::")          # a test named by its node id: the test must exist too
         if not ((ROOT / p).exists() or (ROOT / "sdm_dolfinx" / p).exists()):    # `report/build.py`: the package's
             missing.append(p)
+        elif test and not re.search(rf"^def {re.escape(test)}\(", (ROOT / p).read_text(), re.M):
+            missing.append(f"{p}::{test}")
     assert not missing, f"{rel(page)} names files that do not exist: {missing}"
 
 
