@@ -7,7 +7,7 @@
 #   `sdm_dolfinx.problems.Problem` (plain data: a mesh, the forms a and l, the initial state,
 #   the constrained vertices and their bounds) in about forty lines and declares its parameters
 #   once;
-# * run that file with `sdm_dolfinx.run.launch` like the membrane or the disc (the command line
+# * run that file with `sdm_dolfinx.simulate` like the membrane or the disc (the command line
 #   runs it too: `python -m sdm_dolfinx run --problem-file demos/bar_problem.py`);
 # * measure a contact duration and a contact stress from the time series, and read the stress
 #   wave back from `solution.xdmf`.
@@ -117,7 +117,7 @@ def contact_measures(result, problem):
 
 # ## Running it
 #
-# `launch` takes the problem file's path, its parameter values and the run options. The time
+# `simulate` takes the problem file's path, its parameter values and the run options. The time
 # step is a fraction `cfl` of the time a wave takes to cross a cell, h / c.
 
 

@@ -67,7 +67,7 @@ def sliding_block(mu=MU_BLOCK, T=0.04):
 # μ J_N of its horizontal momentum per unit mass, J_N being the normal impulse (read from the
 # vertical momentum balance); it slides through the whole impact when μ < vx0 m / (3 J_N) ≈ 0.15.
 # So with μ = 0.1 the horizontal velocity must drop by exactly μ J_N / m; with μ = 1 the
-# contact sticks. `launch` runs the registered problem with `out=` and `write_every=1`, so
+# contact sticks. `simulate` runs the registered problem with `out=` and `write_every=1`, so
 # that every step's `contact_status` can be read back from `solution.xdmf`.
 
 

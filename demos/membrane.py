@@ -2,7 +2,7 @@
 #
 # This demo reproduces the membrane study of Renard (2010), §4, Figs. 2–6. It shows how to
 #
-# * run a registered problem with `sdm_dolfinx.run.launch`, as the command line does, so that
+# * run a registered problem with `sdm_dolfinx.simulate`, as the command line does, so that
 #   every run leaves its files (`timeseries.csv`, `run.json`, `solution.xdmf`);
 # * read a run back from its files and plot it;
 # * tell a well-posed pair (W^h, H^h) from an ill-posed one by its energy.
@@ -44,7 +44,7 @@ TIME_STEPS = [1e-2, 1e-3]
 
 # ## Running every pair
 #
-# `launch` runs a declared problem by name with its parameters (`{"N": N}`: the mesh has N × N
+# `simulate` runs a declared problem by name with its parameters (`{"N": N}`: the mesh has N × N
 # squares, h = 1/N; the paper's is N = 10) and the run options of the command line
 # (`python -m sdm_dolfinx membrane --N 10 --pair P2/P1 --dt 1e-3 --out DIR` is the same run).
 # Each (pair, dt) gets its own folder; `write_every=50` stores the fields every 50 steps.
