@@ -3,6 +3,8 @@ factorisation (the derivation: :mod:`sdm_dolfinx.analysis.coulomb_bound`, whose 
 --coulomb-bound`` measures it before a run), and the words a failed Coulomb step adds: the bound,
 measured then on the run's own factorised step matrix (2-D problems; one solve per contact dof),
 and the command that measures it."""
+import warnings
+
 import numpy as np
 
 #: random slip-direction patterns tried besides the two uniform ones
@@ -10,6 +12,14 @@ SAMPLES = 64
 #: a failed Coulomb step measures the bound when the problem has at most this many constrained vertices
 #: (2 solves per vertex with the run's factorisation, and 66 dense eigenvalue problems of that size)
 FAILURE_MEASURE_MAX = 1000
+#: before the first step the bound is measured (and a mu above it warned of) up to this many vertices:
+#: 400 solves with the run's factorisation at most, a fraction of a second to a few seconds
+UPFRONT_MEASURE_MAX = 200
+
+
+class CoulombBoundWarning(UserWarning):
+    """mu is above the Coulomb bound measured on the run's step problem (a sufficient bound: the run
+    may still go through; if a step fails, its message names the bound again)."""
 
 
 def compliance(integ):
@@ -81,3 +91,32 @@ def failure_hint(integ, mu, command):
                 f"is measured well-posed (every constrained vertex in contact and slipping: a sufficient bound, "
                 f"measured before a run by {command}): try a smaller mu, or another dt or mesh")
     return f"; mu = {mu:g} is below this step problem's measured Coulomb bound {bound:.3g} ({command})"
+
+
+def command_for(integ):
+    """The ``inspect --coulomb-bound`` command that measures the bound of ``integ``'s run before a run."""
+    p, d = integ.discretisation.problem, integ.discretisation
+    which = f"--problem-file {p.source}" if p.source else f"--problem {p.name}"
+    return (f"python -m sdm_dolfinx inspect {which} --pair {d.pair.name} --coulomb-bound --dt {integ.dt:g}"
+            + (f" --scheme {integ.scheme}" if integ.scheme != "midpoint" else "") + " with the run's parameters")
+
+
+def warn_if_above(integ, mu):
+    """Before the first step: measure the Coulomb bound of ``integ``'s step problem (2-D, at most
+    :data:`UPFRONT_MEASURE_MAX` constrained vertices; collective) and, when ``mu`` is above it, warn in
+    one line (rank 0) naming the bound: the run may still go through, since the bound is sufficient,
+    not sharp (a failed step names it again)."""
+    solver = integ.solver
+    m = solver.comm.allreduce(len(solver.ndofs))
+    if np.ndim(solver.tdofs) != 1 or m == 0 or m > UPFRONT_MEASURE_MAX:
+        return
+    try:
+        bound = measure(integ)["mu_c"]
+    except (np.linalg.LinAlgError, ValueError):
+        return
+    if bound is None or not np.isfinite(bound) or mu <= bound or solver.comm.rank != 0:
+        return
+    # warn_explicit with no source file: one line ("sdm_dolfinx:0: CoulombBoundWarning: ...")
+    warnings.warn_explicit(f"mu = {mu:g} is above {bound:.3g}, the Coulomb bound measured on this run's step "
+                           f"problem (a sufficient bound: a step may fail to converge; {command_for(integ)} "
+                           f"measures it before a run)", CoulombBoundWarning, "sdm_dolfinx", 0)

@@ -144,6 +144,8 @@ class Integrator:
                                          factor_matrix=self.factor_matrix)
         else:
             self._friction_solver(options)
+            if self.friction.law == "coulomb":          # up front: a mu the measured bound does not cover
+                _friction_bound.warn_if_above(self, self.friction.mu)
 
     def _friction_solver(self, options):
         d, f = self.discretisation, self.friction
@@ -268,11 +270,7 @@ class Integrator:
         command that measures it before a run (:func:`.friction_bound.failure_hint`)."""
         if self.friction is None or self.friction.law != "coulomb":
             return ""
-        p, d = self.discretisation.problem, self.discretisation
-        which = f"--problem-file {p.source}" if p.source else f"--problem {p.name}"
-        command = (f"python -m sdm_dolfinx inspect {which} --pair {d.pair.name} --coulomb-bound --dt {self.dt:g}"
-                   + (f" --scheme {self.scheme}" if self.scheme != "midpoint" else "") + " with the run's parameters")
-        return _friction_bound.failure_hint(self, self.friction.mu, command)
+        return _friction_bound.failure_hint(self, self.friction.mu, _friction_bound.command_for(self))
 
     def _friction_info(self, info, u, un):
         """The step's tangential force, slip (U^{n+1} - U^n at the tangential dofs) and friction

@@ -63,16 +63,36 @@ def test_the_bounds_say_why_through_the_api():
 def test_coulomb_failure_names_the_bound(mpi_tmp_path, capsys):
     """The block's Coulomb step problem with mu = 3 fails at step 1: the one line says mu is above
     the bound measured as inspect --coulomb-bound measures it, and names that command (it said
-    only that Newton did not converge)."""
+    only that Newton did not converge); before the first step a one-line warning already named the
+    bound (the bound is sufficient, not sharp: a warning, not a refusal). With mu = 0.3 (below it)
+    the run says nothing."""
     import re
     from sdm_dolfinx.analysis.coulomb_bound import coulomb_bound
     from sdm_dolfinx.problems import block
+    import warnings
     out = mpi_tmp_path / "run"
-    assert cli.main(["block", "--friction", "coulomb", "--mu", "3", "--out", str(out), "--quiet"]) == 1
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert cli.main(["block", "--friction", "coulomb", "--mu", "3", "--out", str(out), "--quiet"]) == 1
     err = capsys.readouterr().err
     bound = coulomb_bound(block.problem(), "P2/P1", 1e-4)["mu_c"]
     if COMM.rank == 0:
-        assert len(err.strip().splitlines()) == 1 and err.startswith("python -m sdm_dolfinx block: error: step 1 "), err
-        m = re.search(r"mu = 3 is above (\S+), the largest Coulomb coefficient", err)
+        error = err.strip()
+        warning = " ".join(str(w.message) for w in caught if type(w.message).__name__ == "CoulombBoundWarning")
+        assert len(error.splitlines()) == 1 and error.startswith("python -m sdm_dolfinx block: error: step 1 "), err
+        m = re.search(r"mu = 3 is above (\S+), the largest Coulomb coefficient", error)
         assert m and float(m.group(1)) == float(f"{bound:.3g}"), err
+        assert f"mu = 3 is above {bound:.3g}, the Coulomb bound measured on this run's step problem" in warning
+        assert "--coulomb-bound" in warning
         assert "inspect --problem block --pair P2/P1 --coulomb-bound --dt 0.0001" in err
+
+
+def test_a_coulomb_coefficient_below_the_bound_runs_without_a_word(mpi_tmp_path, capsys):
+    """mu = 0.3 on the block (its measured bound about 2): no warning, the run goes through."""
+    import warnings
+    out = mpi_tmp_path / "run"
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert cli.main(["block", "--friction", "coulomb", "--mu", "0.3", "--T", "2e-3", "--out", str(out),
+                         "--quiet"]) == 0
+    assert not [w for w in caught if type(w.message).__name__ == "CoulombBoundWarning"]
