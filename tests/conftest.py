@@ -1,6 +1,9 @@
-"""Shared fixtures: an MPI-safe temporary folder and collective clean-up between tests."""
+"""Shared fixtures: an MPI-safe temporary folder, collective clean-up between tests, the problem
+registry restored after a test, and a folder made read-only even for root."""
 import gc
+import os
 import shutil
+import subprocess
 import tempfile
 from pathlib import Path
 
@@ -27,3 +30,38 @@ def _collective_cleanup():
     yield
     gc.collect()
     MPI.COMM_WORLD.Barrier()
+
+
+@pytest.fixture
+def clean_registry():
+    """The problem registry as it was before the test (a test's problems must not leak into others)."""
+    from sdm_dolfinx.problems import registry
+    saved = dict(registry._REGISTRY)
+    yield
+    registry._REGISTRY.clear()
+    registry._REGISTRY.update(saved)
+
+
+def _read_only(folder, on):
+    """Make ``folder`` unwritable even for root (the immutable attribute), or writable again;
+    every rank skips together where that cannot be done (no chattr, no attributes)."""
+    comm = MPI.COMM_WORLD
+    problem = None
+    if comm.rank == 0:
+        if os.geteuid() == 0:
+            try:
+                r = subprocess.run(["chattr", "+i" if on else "-i", str(folder)], capture_output=True)
+                problem = r.stderr.decode().strip() if r.returncode != 0 and on else None
+            except FileNotFoundError:
+                problem = "no chattr"
+        else:
+            folder.chmod(0o555 if on else 0o755)
+    problem = comm.bcast(problem, root=0)
+    if problem:
+        pytest.skip(f"cannot make a folder read-only for root here: {problem}")
+
+
+@pytest.fixture
+def read_only():
+    """``read_only(folder, on)``: a folder unwritable even for root (``on``), or writable again."""
+    return _read_only

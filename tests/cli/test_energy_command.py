@@ -1,6 +1,4 @@
 """The energy command refuses bad input in one line, before computing anything."""
-import os
-import subprocess
 
 from mpi4py import MPI
 
@@ -27,31 +25,13 @@ def _run(folder):
     COMM.Barrier()
 
 
-def _read_only(folder, on):
-    """Make ``folder`` unwritable even for root (the immutable attribute), or writable again;
-    every rank skips together where that cannot be done (no chattr, no attributes)."""
-    problem = None
-    if COMM.rank == 0:
-        if os.geteuid() == 0:
-            try:
-                r = subprocess.run(["chattr", "+i" if on else "-i", str(folder)], capture_output=True)
-                problem = r.stderr.decode().strip() if r.returncode != 0 and on else None
-            except FileNotFoundError:
-                problem = "no chattr"
-        else:
-            folder.chmod(0o555 if on else 0o755)
-    problem = COMM.bcast(problem, root=0)
-    if problem:
-        pytest.skip(f"cannot make a folder read-only for root here: {problem}")
-
-
 @pytest.mark.parametrize("damage, message", [
     ("no step", "timeseries.csv has no column 'step'"),
     ("no energy", "timeseries.csv has no column 'energy'"),
     ("read-only", "cannot write"),
     ("csv is a folder", "energy_recomputed.csv is a folder"),
 ])
-def test_energy_checks_before_computing(damage, message, mpi_tmp_path, capsys, monkeypatch):
+def test_energy_checks_before_computing(damage, message, mpi_tmp_path, capsys, monkeypatch, read_only):
     """A time series without the columns the comparison needs, or a folder the result cannot
     be written to, is refused at once (nothing computed, nothing written)."""
     folder = mpi_tmp_path / "run"
@@ -71,12 +51,12 @@ def test_energy_checks_before_computing(damage, message, mpi_tmp_path, capsys, m
         raise AssertionError("the energies were computed")
     monkeypatch.setattr(energy_command, "recompute_energy", never)
     if damage == "read-only":
-        _read_only(folder, True)
+        read_only(folder, True)
     try:
         assert cli.main(["energy", str(folder)]) == 2
     finally:
         if damage == "read-only":
-            _read_only(folder, False)
+            read_only(folder, False)
     err = capsys.readouterr().err
     if COMM.rank == 0:
         assert err.startswith("python -m sdm_dolfinx energy: error:") and err.count("\n") == 1, err

@@ -18,14 +18,8 @@ DOC = Path(__file__).resolve().parents[2] / "docs" / "add_a_problem.md"
 SMALL = ["--n", "4", "--dt", "4e-5", "--T", "2.4e-3", "--quiet"]
 
 
-@pytest.fixture(autouse=True)
-def _own_registry():
-    """Each test's my_block.py (another folder each time) registers afresh: the registry is restored after."""
-    from sdm_dolfinx.problems import registry
-    saved = dict(registry._REGISTRY)
-    yield
-    registry._REGISTRY.clear()
-    registry._REGISTRY.update(saved)
+#: each test's problem file (another folder each time) registers afresh: the registry is restored after
+pytestmark = pytest.mark.usefixtures("clean_registry")
 
 
 def block_file(folder):

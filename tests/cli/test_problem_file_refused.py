@@ -44,13 +44,8 @@ CLASHES = [("mu", "the run option --mu"), ("dt", "the run option --dt"), ("out",
            ("json", "the command line's --json")]
 
 
-@pytest.fixture(autouse=True)
-def _own_registry():
-    from sdm_dolfinx.problems import registry
-    saved = dict(registry._REGISTRY)
-    yield
-    registry._REGISTRY.clear()
-    registry._REGISTRY.update(saved)
+#: each test's problem file (another folder each time) registers afresh: the registry is restored after
+pytestmark = pytest.mark.usefixtures("clean_registry")
 
 
 def block_text():

@@ -5,7 +5,6 @@ import json
 import math
 import os
 import shutil
-import subprocess
 import tempfile
 from pathlib import Path
 
@@ -311,35 +310,17 @@ def test_an_mp4_without_its_writer_is_refused(runs, mpi_tmp_path, capsys):
         assert "an MP4 needs" in err and err.count("\n") == 1 and not (mpi_tmp_path / "m.mp4").exists()
 
 
-def _read_only(folder, on):
-    """Make ``folder`` unwritable even for root (the immutable attribute), or writable again;
-    every rank skips together where that cannot be done."""
-    problem = None
-    if COMM.rank == 0:
-        if os.geteuid() == 0:
-            try:
-                r = subprocess.run(["chattr", "+i" if on else "-i", str(folder)], capture_output=True)
-                problem = r.stderr.decode().strip() if r.returncode != 0 and on else None
-            except FileNotFoundError:
-                problem = "no chattr"
-        else:
-            folder.chmod(0o555 if on else 0o755)
-    problem = COMM.bcast(problem, root=0)
-    if problem:
-        pytest.skip(f"cannot make a folder read-only for root here: {problem}")
-
-
 @pytest.mark.parametrize("argv", [["--merge"], ["--png", "{run}/p.png"]])
-def test_a_read_only_folder_is_refused(argv, runs, capsys):
+def test_a_read_only_folder_is_refused(argv, runs, capsys, read_only):
     """--merge (or a picture) into a folder that cannot be written: one line, exit 2 (an
     internal error before)."""
     folder = runs["membrane"]
     argv = [a.format(run=folder) for a in argv]
-    _read_only(folder, True)
+    read_only(folder, True)
     try:
         status, out, err = _render([folder, *argv], capsys)
     finally:
-        _read_only(folder, False)
+        read_only(folder, False)
     assert status == 2
     if COMM.rank == 0:
         assert err.startswith("python -m sdm_dolfinx render: error: cannot write") and err.count("\n") == 1, err

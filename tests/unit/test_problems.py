@@ -23,15 +23,6 @@ from sdm_dolfinx.problems import Param, Problem, ProblemInputError, ProblemSpec,
 COMM = MPI.COMM_WORLD
 
 
-@pytest.fixture
-def clean_registry():
-    """The registry as it was before the test (a test's problems must not leak into others)."""
-    saved = dict(registry._REGISTRY)
-    yield
-    registry._REGISTRY.clear()
-    registry._REGISTRY.update(saved)
-
-
 def one_line(exc):
     """The message of a refused input must be one line (the CLI prints it as is)."""
     msg = str(exc.value)
