@@ -222,7 +222,9 @@ def _unrecognised(key):
     """``unrecognised argument``, with the nearest option when there is one."""
     import difflib
     if key.startswith("--"):
-        near = difflib.get_close_matches(key.split("=")[0].replace("_", "-"), _KNOWN_OPTIONS, n=1, cutoff=0.6)
+        typed = key.split("=")[0].replace("_", "-")
+        same_letters = [o for o in _KNOWN_OPTIONS if o.lower() == typed.lower()]      # --Nx for --nx
+        near = same_letters or difflib.get_close_matches(typed, _KNOWN_OPTIONS, n=1, cutoff=0.6)
         return f"unrecognised option {key!r}" + (f"; did you mean {near[0]}?" if near else "")
     return f"unrecognised argument {key!r} (PETSc options of the step solver start with -sdm_)"
 

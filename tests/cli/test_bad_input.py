@@ -41,6 +41,7 @@ BAD = [
     (["membrane", "--checkpoint-every", "-3"], None, "--checkpoint-every"),
     (["membrane", "--probe", "2", "0.5"], None, "--probe"),
     (["membrane", "--bogus"], None, "unrecognised"),
+    (["block", "--NX", "4"], None, "unrecognised option '--NX'; did you mean --nx?"),
     (["nosuchproblem"], None, "unknown command"),
     (["membrane", "--config", "/nonexistent/run.toml"], None, "not found"),
     (["membrane"], "dt = 1e-3\nNN = 4\n", "unknown key 'NN'"),
