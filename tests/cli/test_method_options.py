@@ -61,7 +61,8 @@ def test_the_bounds_say_why_through_the_api():
 
 
 def test_coulomb_failure_names_the_bound(mpi_tmp_path, capsys):
-    """The block's Coulomb step problem with mu = 3 fails at step 1: the one line says mu is above
+    """The block's Coulomb step problem with mu = 3 fails (at step 1 on dolfinx 0.5, at step 331 on
+    0.9: which step first breaks the non-unique step problem is round-off, not physics): the one line says mu is above
     the bound measured as inspect --coulomb-bound measures it, and names that command (it said
     only that Newton did not converge); before the first step a one-line warning already named the
     bound (the bound is sufficient, not sharp: a warning, not a refusal). With mu = 0.3 (below it)
@@ -79,7 +80,7 @@ def test_coulomb_failure_names_the_bound(mpi_tmp_path, capsys):
     if COMM.rank == 0:
         error = err.strip()
         warning = " ".join(str(w.message) for w in caught if type(w.message).__name__ == "CoulombBoundWarning")
-        assert len(error.splitlines()) == 1 and error.startswith("python -m sdm_dolfinx block: error: step 1 "), err
+        assert len(error.splitlines()) == 1 and re.match(r"python -m sdm_dolfinx block: error: step \d+ \(t = ", error), err
         m = re.search(r"mu = 3 is above (\S+), the largest Coulomb coefficient", error)
         assert m and float(m.group(1)) == float(f"{bound:.3g}"), err
         assert f"mu = 3 is above {bound:.3g}, the Coulomb bound measured on this run's step problem" in warning
