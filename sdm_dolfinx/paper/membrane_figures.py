@@ -67,8 +67,7 @@ def _unstable_text(ser, nums, dstr, good):
     """An ill-posed pair with the midpoint scheme: the energy grows after the impact, more for small dt.
     Returns (sentence, verdict)."""
     g = nums["growth"]
-    grows = g[-1] > 1.5
-    worse = all(g[k + 1] >= g[k] for k in range(len(g) - 1))
+    worse = unstable_verdict(g) is Verdict.AGREES
     ref = [x.rebound() for x in good] if good else None
     ref_peak = listing(f"{x['lambda_probe'].max():.3g}" for x in good) if good else ""
     return (f"Ours: the energy reaches {listing('∞ (blew up)' if math.isinf(x) else f'{x:.3g} J0' for x in g)} "
@@ -77,8 +76,20 @@ def _unstable_text(ser, nums, dstr, good):
             + (f" (P1+/P0: {listing(f'{x:.3g}' for x in ref)})" if ref else "")
             + f" and the peak contact stress is {listing(f'{x:.3g}' for x in nums['stress_peak'])}"
             + (f" (P1+/P0: {ref_peak})" if ref else "") + ". "
-            + ("The growth is larger for the smaller time step. " if worse else
-               "The growth is not monotone in dt. "), Verdict.of(grows and worse, grows))
+            + ("The growth is largest for the smallest time step" if worse else
+               "The growth is not largest for the smallest time step")
+            + ("" if all(g[k + 1] >= g[k] for k in range(len(g) - 1)) else " (not monotone over the larger ones)")
+            + ". ", unstable_verdict(g))
+
+
+def unstable_verdict(growth):
+    """The paper's claim for an ill-posed pair (Figs. 3 and 4): the energy grows very fast after the
+    impact (here: to more than 1.5 J0 at the smallest dt), and "the instabilities are more important
+    for the smallest time step" (the smallest dt's growth is the largest). The larger time steps
+    are not ranked among themselves: the paper says nothing of them, and an ill-posed run's growth
+    at a given dt is round-off amplified (12.78 or 13.30 J0 at dt = 1e-3 on two machines)."""
+    grows = growth[-1] > 1.5
+    return Verdict.of(grows and growth[-1] >= max(growth), grows)
 
 
 def _backward_euler_text(study, pair, ser, nums, dstr):

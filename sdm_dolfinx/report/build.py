@@ -30,7 +30,7 @@ PAPER_SAYS = {
              "smooth and converge as dt decreases.",
     "fig03": "Paper Fig. 3 (P1/P0, midpoint, h = 0.1): unstable. The energy grows very fast after the first "
              "impact, displacement and contact stress oscillate and do not converge, and the instabilities "
-             "are larger for the smaller time step (the pair violates condition (7)).",
+             "are more important for the smallest time step (the pair violates condition (7)).",
     "fig04": "Paper Fig. 4 (P1/P1, the standard Galerkin method, midpoint, h = 0.1): unstable like P1/P0; "
              "the energy grows very fast after the first impact, more so for the smaller time step.",
     "fig05": "Paper Fig. 5 (P1+/P1, midpoint, h = 0.1): stable and converging although condition (7) is "
