@@ -72,5 +72,5 @@ paraview-check: setup
 	  echo "paraview-check: installing the Debian packages paraview xvfb"; \
 	  $$SUDO apt-get update -qq && $$SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq paraview xvfb >/dev/null; }
 	$(PY) -m sdm_dolfinx membrane --N 10 --dt 1e-3 --T 0.5 --write-every 20 --out output/paraview-check --overwrite --quiet
-	xvfb-run -a pvpython scripts/paraview_check.py output/paraview-check --json output/paraview-check/paraview.json --png output/paraview-check/paraview.png
+	xvfb-run -a -s "-screen 0 1280x1024x24 -noreset" pvpython scripts/paraview_check.py output/paraview-check --json output/paraview-check/paraview.json --png output/paraview-check/paraview.png
 	$(PY) -m pytest -q tests/integration/test_paraview.py

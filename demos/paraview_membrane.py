@@ -9,8 +9,8 @@ with the vertices in contact as red spheres, at any time step of the animation t
   ``SDM_RUN`` variable, default ``demos/output/membrane/P1plus-P0_dt0.001``).
 * Without a window, to a picture (rendering needs an X display; ``xvfb-run`` provides one)::
 
-      xvfb-run -a pvpython demos/paraview_membrane.py RUN_DIR --png membrane.png [--time 0.3]
-      xvfb-run -a pvpython demos/paraview_membrane.py RUN_DIR --frames DIR   # one PNG per step
+      xvfb-run -a -s "-screen 0 1280x1024x24 -noreset" pvpython demos/paraview_membrane.py RUN_DIR --png membrane.png [--time 0.3]
+      xvfb-run -a -s "-screen 0 1280x1024x24 -noreset" pvpython demos/paraview_membrane.py RUN_DIR --frames DIR   # one PNG per step
 
 dolfinx's XDMF stores each field as its own grid, which ParaView shows as four overlapping
 blocks, one array each; the script first writes ``solution_paraview.xdmf`` next to it (all

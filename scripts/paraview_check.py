@@ -3,7 +3,7 @@
 Run with ParaView's Python (Debian: ``apt-get install paraview``)::
 
     pvpython scripts/paraview_check.py RUN_DIR [--json SUMMARY.json] [--png PICTURE.png]
-    xvfb-run -a pvpython scripts/paraview_check.py RUN_DIR --png out.png    # rendering needs a display
+    xvfb-run -a -s "-screen 0 1280x1024x24 -noreset" pvpython scripts/paraview_check.py RUN_DIR --png out.png    # rendering needs a display
 
 It loads ``RUN_DIR/solution.xdmf`` with ``Xdmf3ReaderS`` (ParaView's "XDMF Reader"), steps
 through every time step and checks, at each: the arrays ``displacement``, ``velocity``,
