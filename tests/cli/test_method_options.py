@@ -61,9 +61,10 @@ def test_the_bounds_say_why_through_the_api():
 
 
 def test_coulomb_failure_names_the_bound(mpi_tmp_path, capsys):
-    """The block's Coulomb step problem with mu = 3 fails (at step 1 on dolfinx 0.5, at step 331 on
-    0.9: which step first breaks the non-unique step problem is round-off, not physics): the one line says mu is above
-    the bound measured as inspect --coulomb-bound measures it, and names that command (it said
+    """The block's Coulomb step problem with mu = 3 fails (at step 1 here, at step 331 on CI's
+    dolfinx 0.9: which step first breaks the non-unique step problem is round-off, not physics):
+    the one line says mu is above the bound measured as inspect --coulomb-bound measures it, and
+    names that command (it said
     only that Newton did not converge); before the first step a one-line warning already named the
     bound (the bound is sufficient, not sharp: a warning, not a refusal). With mu = 0.3 (below it)
     the run says nothing."""
