@@ -1,5 +1,5 @@
 """Shared fixtures: an MPI-safe temporary folder, collective clean-up between tests, the problem
-registry restored after a test, and a folder made read-only even for root."""
+and scheme registries restored after a test, and a folder made read-only even for root."""
 import gc
 import os
 import shutil
@@ -32,14 +32,26 @@ def _collective_cleanup():
     MPI.COMM_WORLD.Barrier()
 
 
+def _restored(mapping):
+    """Yield once, then put ``mapping`` (a registry's dict) back as it was (a fixture's body)."""
+    saved = dict(mapping)
+    yield
+    mapping.clear()
+    mapping.update(saved)
+
+
 @pytest.fixture
 def clean_registry():
     """The problem registry as it was before the test (a test's problems must not leak into others)."""
     from sdm_dolfinx.problems import registry
-    saved = dict(registry._REGISTRY)
-    yield
-    registry._REGISTRY.clear()
-    registry._REGISTRY.update(saved)
+    yield from _restored(registry._REGISTRY)
+
+
+@pytest.fixture
+def clean_schemes():
+    """The scheme registry as it was before the test."""
+    from sdm_dolfinx import schemes
+    yield from _restored(schemes._REGISTRY)
 
 
 def _read_only(folder, on):

@@ -29,14 +29,6 @@ COMM = MPI.COMM_WORLD
 FLOP_RTOL = 1e-14
 
 
-@pytest.fixture
-def clean_schemes():
-    saved = dict(schemes._REGISTRY)
-    yield
-    schemes._REGISTRY.clear()
-    schemes._REGISTRY.update(saved)
-
-
 # ------------------------------------------------------------------------------ registry
 def test_registry_names_and_get():
     assert set(schemes.names()) >= {"midpoint", "backward-euler"}
