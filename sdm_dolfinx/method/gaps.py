@@ -38,3 +38,15 @@ def boundary_gap_where(discretisation: Discretisation, u: npt.NDArray[np.float64
     _, owner = d.comm.allreduce((float(gap[k]) if k >= 0 else np.inf, d.comm.rank), op=MPI.MINLOC)
     x = d.comm.bcast(d.bx[:, k] if d.comm.rank == owner else None, root=owner)
     return x[:d.problem.mesh.geometry.dim]
+
+
+def displacement_spread(discretisation: Discretisation, u: npt.NDArray[np.float64]) -> float:
+    """max - min over every owned dof of W^h of the bounded component u_c, reduced over the ranks
+    (0.0 without dofs): the run's displacement scale in the direction of the constraint, a rigid
+    translation excluded (a block pushed down by d at its top while its bottom rests: d)."""
+    d = discretisation
+    bs = d.W.dofmap.index_map_bs
+    uc = u[(d.problem.constraint_component or 0)::bs] if bs > 1 else u
+    ext = np.array([np.max(uc, initial=-np.inf), -np.min(uc, initial=np.inf)])
+    d.comm.Allreduce(MPI.IN_PLACE, ext, op=MPI.MAX)
+    return float(ext[0] + ext[1]) if np.all(np.isfinite(ext)) else 0.0

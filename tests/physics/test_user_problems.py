@@ -263,6 +263,37 @@ def test_p2_mid_edge_nodes_sink_below_the_floor_and_are_reported():
         assert line.startswith("sdm_dolfinx:0: BoundaryGapWarning: step ") and line.count("\n") == 1
 
 
+def test_a_sink_small_against_the_body_but_large_against_its_motion_is_reported():
+    """The built-in block (20 x 10 mm, E = 1000, nu = 0, rho g = 9.81e-3 N/mm^3) resting at its static
+    equilibrium, P2/P1 with the vertex constraint: its weight shortens it by rho g H^2 / (2 E) = 4.9e-4 mm
+    (a bar under its own weight), and the foundation's mid-edge nodes sink between the constrained
+    vertices by a sizeable part of that (measured 1.4e-4 mm). Far below the 1e-3 x diameter (0.02 mm)
+    tolerance the warning used alone, so it was silent: the warning now compares the sink with the run's
+    own displacement spread (here the weight's shortening), warns, and names the option that holds the
+    face; with constrain='nodes' every node of the face is at the foundation (to round-off of the
+    displacements, 1e-12 of the shortening) and nothing is reported."""
+    import warnings
+    from sdm_dolfinx.problems.registry import get
+    from sdm_dolfinx.run.result import BOUNDARY_SINK_RTOL, BoundaryGapWarning
+    rho, g, H, E = 1e-6, 9810.0, 10.0, 1000.0
+    shortening = rho * g * H ** 2 / (2 * E)
+    found = {}
+    for constrain in ("vertices", "nodes"):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            r = simulate(get("block").problem(v0=0.0), pair="P2/P1", dt=1e-4, T=2e-4, constrain=constrain)
+        found[constrain] = ([str(w.message) for w in caught if issubclass(w.category, BoundaryGapWarning)],
+                            r.timeseries["gap_min_boundary"])
+    mine, gap = found["vertices"]
+    sink = -gap.min()
+    assert BOUNDARY_SINK_RTOL * shortening < sink < 1e-3 * 20.0, (sink, shortening)
+    assert len(mine) == (1 if COMM.rank == 0 else 0), mine
+    if mine:
+        assert mine[0].startswith("step 0 (t = 0): ") and "constrain='nodes'" in mine[0] and "\n" not in mine[0]
+    mine, gap = found["nodes"]
+    assert not mine and gap.min() > -1e-12 * shortening
+
+
 def test_p1_bubble_boundary_gap_is_the_vertex_gap():
     """P1+/P0: on a boundary facet the bubble vanishes, so the boundary dofs are the vertices: the
     column equals the vertex gap of every step, and nothing is reported."""
