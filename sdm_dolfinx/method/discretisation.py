@@ -12,10 +12,9 @@ import ufl
 from dolfinx import fem, mesh as dmesh
 
 from sdm_dolfinx import compat
-from sdm_dolfinx.errors import SdmError
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.method.frozen import FrozenData
-from sdm_dolfinx.method import masses, problem_data, quadrature
+from sdm_dolfinx.method import dirichlet as _parts, masses, problem_data, quadrature
 from sdm_dolfinx.method.pairs import MASS_TREATMENTS, get_pair
 
 #: an initial displacement below the bound by more than this times max(1, max |bound|) at a
@@ -260,91 +259,14 @@ class Discretisation:
         self.q1_of_c = vertex_to_dof(self.Q1, self.cverts)
 
     def _dirichlet(self):
-        p = self.problem
-        W = self.W
-        self.ddofs = np.zeros(0, dtype=np.int32)
-        self._fixed_ddofs = self.ddofs                      # the constant dirichlet_facets' dofs
-        self.g = fem.Function(W)        # Dirichlet values (zero elsewhere; a part's at t = 0)
-        #: per Dirichlet part (Problem.dirichlet_parts): its owned dofs, their components, the
-        #: coordinates of its owned dof blocks (:meth:`part_values`)
-        self.part_dofs, self.part_components, self._part_x = [], [], []
-        if p.dirichlet_facets is None and not p.dirichlet_parts:
-            return
-        msh = p.mesh
-        fdim = msh.topology.dim - 1
-        if p.dirichlet_facets is not None:
-            facets = np.asarray(p.dirichlet_facets(msh), dtype=np.int32)
-            msh.topology.create_connectivity(fdim, msh.topology.dim)
-            dofs = fem.locate_dofs_topological(W, fdim, facets)      # blocks
-            bs = W.dofmap.index_map_bs
-            dofs = (dofs[:, None] * bs + np.arange(bs)[None, :]).reshape(-1)
-            gfun = fem.Function(W)
-            gfun.interpolate(p.dirichlet_value)
-            self.ddofs = self._fixed_ddofs = np.sort(dofs[dofs < owned_size(W)]).astype(np.int32)
-            self.g.x.array[self.ddofs] = gfun.x.array[self.ddofs]
-        if p.dirichlet_parts:
-            self._parts()
-        self.g.x.scatter_forward()
-        if np.intersect1d(self.ddofs, self.cdofs).size:
-            # a Dirichlet dof is fixed anyway: drop it from the constraint set
-            keep = ~np.isin(self.cdofs, self.ddofs)
-            self.cverts, self.cdofs, self.lb = self.cverts[keep], self.cdofs[keep], self.lb[keep]
-            self.cmeasure, self.q1_of_c, self.cx = self.cmeasure[keep], self.q1_of_c[keep], self.cx[:, keep]
-        # collective on every rank (a rank without such a dof must not skip it: deadlock)
-        self.num_constraints = self.comm.allreduce(len(self.cdofs), op=MPI.SUM)
-
-    def _parts(self):
-        """The owned dofs of each Dirichlet part (its prescribed components of the dof blocks on its
-        facets), their values at t = 0 into ``g``, and the union into ``ddofs``. A dof in two parts
-        (or in a part and ``dirichlet_facets``) is refused in one line: whose data and reaction it
-        carries would be a guess."""
-        p, W, msh = self.problem, self.W, self.problem.mesh
-        fdim, bs, shape = msh.topology.dim - 1, W.dofmap.index_map_bs, tuple(p.shape)
-        msh.topology.create_connectivity(fdim, msh.topology.dim)
-        nowned = W.dofmap.index_map.size_local
-        taken, wrong = self.ddofs, None
-        for part in p.dirichlet_parts:
-            facets = np.asarray(part.facets(msh))
-            if facets.size and not np.issubdtype(facets.dtype, np.integer):
-                wrong = wrong or f"Dirichlet part {part.name!r}: facets returned {facets.dtype} values, not facet indices"
-                facets = np.zeros(0, dtype=np.int32)
-            blocks = fem.locate_dofs_topological(W, fdim, facets.astype(np.int32).reshape(-1))
-            blocks = np.sort(blocks[blocks < nowned]).astype(np.int64)
-            axes = np.asarray(part.axes(shape), dtype=np.int64)
-            dofs = (blocks[:, None] * bs + axes[None, :]).reshape(-1).astype(np.int32)
-            if np.intersect1d(dofs, taken).size:
-                other = next((q.name for q, qd in zip(p.dirichlet_parts, self.part_dofs)
-                              if np.intersect1d(dofs, qd).size), None)
-                wrong = wrong or (f"Dirichlet part {part.name!r} shares prescribed dofs with "
-                                  + (f"part {other!r}" if other else "dirichlet_facets")
-                                  + ": leave the shared facets (or components) out of one of them")
-            self.part_dofs.append(dofs)
-            self.part_components.append(np.tile(axes, len(blocks)).astype(np.int32))
-            self._part_x.append(self._dof_x()[blocks].T if blocks.size else np.zeros((3, 0)))
-            taken = np.union1d(taken, dofs)
-        problem_data.refuse(p, self.comm, wrong)
-        for k in range(len(p.dirichlet_parts)):
-            self.g.x.array[self.part_dofs[k]] = self.part_values(k, 0.0)
-        self.ddofs = np.asarray(taken, dtype=np.int32)
+        """``ddofs`` (the owned Dirichlet dofs), ``g`` (their values at t = 0) and the Dirichlet parts'
+        dofs (:func:`.dirichlet.setup`); a Dirichlet dof leaves the constraint set."""
+        _parts.setup(self)
 
     def part_values(self, k, t, rate=False):
         """The data of Dirichlet part ``k`` at time ``t`` (``rate``: its velocity) at its owned dofs
-        ``part_dofs[k]`` (DiscretisationError on every rank, one line, for data that are not finite
-        or of the wrong shape)."""
-        p = self.problem
-        part, x, shape = p.dirichlet_parts[k], self._part_x[k], tuple(p.shape)
-        wrong, v = None, np.zeros(len(self.part_dofs[k]))
-        try:
-            vals = part.values(x, t, shape, rate)
-            axes = list(part.axes(shape)) if shape else [0]
-            v = np.ascontiguousarray(vals[axes, :].T).reshape(-1)
-            if not np.all(np.isfinite(v)):
-                wrong = (f"Dirichlet part {part.name!r}: {'velocity' if rate else 'value'}(x, t) is not finite at "
-                         f"t = {t:.6g}")
-        except SdmError as e:
-            wrong = str(e)
-        problem_data.refuse(p, self.comm, wrong)
-        return v
+        ``part_dofs[k]`` (collective; :func:`.dirichlet.part_values`)."""
+        return _parts.part_values(self, k, t, rate)
 
     def _boundary(self):
         """Owned dofs of W^h (the bounded component) on the constrained boundary -- the facets whose

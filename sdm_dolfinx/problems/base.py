@@ -28,6 +28,10 @@ from sdm_dolfinx import compat
 from sdm_dolfinx.errors import SdmError
 from sdm_dolfinx.params import PARAM_TYPES as PARAM_TYPES  # noqa: F401  (declared once for problems and runs)
 from sdm_dolfinx.params import Param as Param
+from sdm_dolfinx.problems.dirichlet import DirichletPart as DirichletPart
+from sdm_dolfinx.problems.dirichlet import MeshEntities as MeshEntities
+from sdm_dolfinx.problems.dirichlet import validate_parts
+from sdm_dolfinx.problems.errors import ProblemInputError as ProblemInputError
 
 if TYPE_CHECKING:
     from dolfinx.fem import Constant
@@ -37,80 +41,11 @@ if TYPE_CHECKING:
 UFL = Any
 #: ``x -> values`` at the points x of shape (3, n), as ``Function.interpolate`` takes it
 PointFunction = Callable[[npt.NDArray[np.float64]], npt.ArrayLike]
-#: ``mesh -> local entity (vertex or facet) indices``
-MeshEntities = Callable[["Mesh"], npt.ArrayLike]
 
 
 #: the time-series columns a Problem may add (``extra_columns``): sum of the normal multipliers,
 #: e_x^T M Vbar, the momentum along ``momentum_component``, 1/2 U^T A U
 EXTRA_COLUMNS = ("contact_force", "momentum_x", "momentum_y", "elastic")
-
-#: the letters of the components in column names (``reaction_<part>_<x|y|z>``)
-AXES = "xyz"
-
-
-@dataclass
-class DirichletPart:
-    """A named boundary part where u (or some of its components) follows prescribed, possibly
-    time-dependent, data u = u_D(x, t): a clamp, a moving end, a punch pushing one component.
-
-    Attributes:
-        name: the part's name (letters, digits, ``_``): its reaction columns are
-            ``reaction_<name>_<x|y|z>`` per prescribed component (``reaction_<name>`` for a scalar u).
-        facets: ``mesh -> local facet indices`` of the part (as ``dirichlet_facets``).
-        value: ``value(x, t) -> values`` at the points x of shape (3, n) at time t: an array that
-            broadcasts to u's value shape times n ((gdim, n) for a vector u, (n,) for a scalar
-            u; a number is the same value everywhere); only the rows of ``components`` are used.
-            Evaluated at the part's dofs of W^h at every step (the scheme says at which times).
-        components: the prescribed components of a vector u (e.g. ``(1,)``: u_y only, the other
-            components free, such as a frictionless punch), None for all of them (and for a
-            scalar u).
-        velocity: ``velocity(x, t)``, the rate du_D/dt of the data, read at t = 0 only: the
-            scheme's velocity unknown on the part starts from it (None: 0, data that start at
-            rest, such as a ramp d(t) = V t^2 / (2 t_r) or a(1 - cos(w t))). A wrong one makes the
-            part's velocity alternate from step to step (the midpoint rule's V^{n+1} =
-            2 (U^{n+1} - U^n)/dt - V^n), which the body feels through the mass.
-
-    The initial displacement on the part is value(x, 0) (whatever u0 says there).
-    """
-    name: str
-    facets: MeshEntities
-    value: Callable[[npt.NDArray[np.float64], float], npt.ArrayLike]
-    components: Optional[Sequence[int]] = None
-    velocity: Optional[Callable[[npt.NDArray[np.float64], float], npt.ArrayLike]] = None
-
-    def axes(self, shape: tuple[int, ...]) -> tuple[int, ...]:
-        """The prescribed components for u of value ``shape`` (``(0,)`` for a scalar u)."""
-        if not shape:
-            return (0,)
-        return tuple(range(shape[0])) if self.components is None else tuple(int(c) for c in self.components)
-
-    def columns(self, shape: tuple[int, ...]) -> tuple[str, ...]:
-        """Its reaction columns: ``reaction_<name>_<x|y|z>`` per prescribed component, or
-        ``reaction_<name>`` for a scalar u."""
-        if not shape:
-            return (f"reaction_{self.name}",)
-        return tuple(f"reaction_{self.name}_{AXES[c]}" for c in self.axes(shape))
-
-    def values(self, x: npt.NDArray[np.float64], t: float, shape: tuple[int, ...],
-               rate: bool = False) -> npt.NDArray[np.float64]:
-        """value(x, t) (``rate``: velocity(x, t), 0 without one) as an array of shape (value size, n)
-        (ProblemInputError if it cannot be)."""
-        n = x.shape[1]
-        full = (shape[0], n) if shape else (1, n)
-        f = self.velocity if rate else self.value
-        v = np.asarray(0.0 if f is None else f(x, t), dtype=float)
-        try:
-            v = np.broadcast_to(v if shape else v.reshape((1,) + v.shape) if v.ndim else v, full)
-        except ValueError:
-            raise ProblemInputError(f"Dirichlet part {self.name!r}: {'velocity' if rate else 'value'}(x, t) returned "
-                                    f"shape {v.shape} for x of "
-                                    f"shape {x.shape}; it must broadcast to {full if shape else (n,)}") from None
-        return v
-
-    def describe(self, shape: tuple[int, ...]) -> dict[str, Any]:
-        """What run.json (and a checkpoint's identity) records of the part."""
-        return {"name": self.name, "components": list(self.axes(shape))}
 
 
 @dataclass
@@ -231,7 +166,7 @@ class Problem:
         if self.time is not None and (not hasattr(self.time, "value") or np.shape(self.time.value) != ()):
             raise ProblemInputError(f"problem {self.name!r}: time must be a scalar fem.Constant used by l(w) "
                                     f"(got {type(self.time).__name__})")
-        self._validate_parts(shape)
+        validate_parts(self.name, self.dirichlet_parts, shape)
         rho = self.rho
         if isinstance(rho, bool) or not isinstance(rho, (int, float, np.integer, np.floating)) \
                 or not (np.isfinite(rho) and rho > 0):
@@ -240,36 +175,6 @@ class Problem:
         degenerate = degenerate_cells(self.mesh) if hasattr(self.mesh, "geometry") else None
         if degenerate:
             raise ProblemInputError(f"problem {self.name!r}: {degenerate}")
-
-    def _validate_parts(self, shape: tuple[int, ...]) -> None:
-        """Refuse Dirichlet parts that are not DirichletParts, unnamed or twice named, or name
-        components u does not have (one line)."""
-        names: list[str] = []
-        for part in self.dirichlet_parts:
-            if not isinstance(part, DirichletPart):
-                raise ProblemInputError(f"problem {self.name!r}: dirichlet_parts must hold DirichletPart(name, facets, "
-                                        f"value, components) entries (got {type(part).__name__})")
-            if not isinstance(part.name, str) or not part.name.isidentifier() or part.name in names:
-                raise ProblemInputError(f"problem {self.name!r}: a Dirichlet part's name must be a distinct identifier "
-                                        f"(letters, digits, _), used in its columns reaction_<name>_<x|y|z> (got "
-                                        f"{part.name!r})")
-            names.append(part.name)
-            if not callable(part.facets) or not callable(part.value) or not (part.velocity is None
-                                                                              or callable(part.velocity)):
-                raise ProblemInputError(f"problem {self.name!r}: Dirichlet part {part.name!r}: facets (mesh -> facets), "
-                                        f"value (x, t -> values) and velocity (x, t -> values, or None) must be "
-                                        f"callables")
-            comps = part.components
-            if comps is not None:
-                n = shape[0] if shape else 0
-                bad = [c for c in comps if isinstance(c, bool) or not isinstance(c, (int, np.integer))
-                       or not 0 <= c < n]
-                if not shape or bad or not len(comps) or len(set(comps)) != len(comps):
-                    raise ProblemInputError(
-                        f"problem {self.name!r}: Dirichlet part {part.name!r}: components must be distinct integers "
-                        f"in 0..{n - 1} for u of shape {shape}, or None for all of them (got {comps!r})"
-                        if shape else f"problem {self.name!r}: Dirichlet part {part.name!r}: a scalar u has no "
-                                      f"components; leave components at None")
 
     def describe(self) -> dict[str, Any]:
         """Parameters with their units, as written to ``run.json`` (``args`` and ``source``
@@ -286,10 +191,6 @@ class Problem:
         if self.dirichlet_parts:
             d["dirichlet_parts"] = [part.describe(tuple(self.shape)) for part in self.dirichlet_parts]
         return d
-
-
-class ProblemInputError(SdmError, ValueError):
-    """Parameter values a problem refuses (the message may join several, with '; ')."""
 
 
 def label(problem: Any) -> str:

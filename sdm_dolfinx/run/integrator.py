@@ -27,6 +27,7 @@ import numpy as np
 from sdm_dolfinx.method import gaps as _gaps, iterative as _iterative, step_matrix as _step_matrix
 from sdm_dolfinx.contact import friction as _friction, friction_bound as _friction_bound
 from sdm_dolfinx.contact.context import StepContext
+from sdm_dolfinx.run import prescribed as _prescribed
 from sdm_dolfinx import schemes
 from sdm_dolfinx.errors import StepError
 from sdm_dolfinx.method.errors import DiscretisationError
@@ -79,10 +80,11 @@ class Integrator:
         self.nW = discretisation.A.getLocalSize()[0]
         self.friction = friction if friction is not None and friction.on else None
         self.treatment, self.state = None, None
-        #: the Problem declares Dirichlet parts: their data are lifted at every step, their reactions reported
-        self.parts = bool(discretisation.problem.dirichlet_parts)
+        #: the Problem's Dirichlet parts (:class:`~.prescribed.Prescribed`: data lifted at every step,
+        #: reactions and their work reported), or None
+        self.parts = _prescribed.Prescribed() if discretisation.problem.dirichlet_parts else None
         refused = _friction.check_solver(self.friction and self.friction.law, vi_solver, linear)
-        refused = refused or [r for r in (self._refuse_contact(), self._refuse_parts(), ts.refuse(self)) if r]
+        refused = refused or [r for r in (self._refuse_contact(), self.parts and self.parts.refuse(self), ts.refuse(self)) if r]
         if refused:
             raise DiscretisationError(refused[0])
         ts.setup(self)
@@ -111,26 +113,6 @@ class Integrator:
         if self.block:
             return (f"contact {self.contact!r} is written in the M formulation; mass 'consistent' solves the "
                     f"(U, V) block system: use mass 'lumped'")
-        return None
-
-    def _refuse_parts(self):
-        """The refusal of Dirichlet parts by a scheme or contact treatment that does not take them, or
-        of a part prescribing a frictional tangential dof, or None."""
-        d, ts = self.discretisation, self.time_scheme
-        if not self.parts:
-            return None
-        if not ts.moving_dirichlet:
-            return (f"scheme {self.scheme!r} does not take Dirichlet parts (prescribed displacements, "
-                    f"Problem.dirichlet_parts): use midpoint or backward-euler")
-        if self.contact == "nitsche":
-            return ("contact 'nitsche' with Dirichlet parts is not supported (its boundary residual at Dirichlet rows "
-                    "is dropped, so the reactions would miss it): use contact exact or penalty")
-        if self.friction is not None:       # a Dirichlet dof at a constrained vertex is a tangential one
-            bs = d.W.dofmap.index_map_bs
-            shared = d.comm.allreduce(int(np.count_nonzero(np.isin(d.ddofs // bs, d.cdofs // bs))), op=MPI.SUM)
-            if shared:
-                return (f"friction acts at constrained vertices where a Dirichlet part prescribes {shared} tangential "
-                        f"components: leave the contact boundary out of the Dirichlet parts")
         return None
 
     def _make_solver(self, vi_solver, linear, options, contact_options):
@@ -203,13 +185,8 @@ class Integrator:
         # a time-dependent load: the step's L, and L at the time of a recorded state (energies)
         self._L_step = d.L.copy() if self.time_dependent else None
         self._L_state, self._L_state_t = (d.L.copy(), 0.0) if self.time_dependent else (None, None)
-        if self.parts:              # the step's unlifted right-hand side and K X at the Dirichlet rows
-            self._b_dirichlet, self._KX = None, self.K_full.createVecLeft()
-            #: per part, where its dofs sit in ``ddofs``; the (part, component) of each reaction column
-            self._part_at = [np.searchsorted(d.ddofs, dofs) for dofs in d.part_dofs]
-            shape = tuple(d.problem.shape)
-            self.reaction_keys = [(k, c) for k, part in enumerate(d.problem.dirichlet_parts)
-                                  for c in part.axes(shape)]
+        if self.parts:
+            self.parts.build(self)
 
     def load(self, t=None):
         """The load vector L at time ``t`` (the vector assembled once when L does not depend on
@@ -253,7 +230,7 @@ class Integrator:
         """b with the Dirichlet lifting: b - K g off the Dirichlet dofs, g on them (in place)."""
         d = self.discretisation
         if self.parts:              # the reactions are K X - b at the Dirichlet rows, b before the lifting
-            self._b_dirichlet = b.array_r[d.ddofs].copy()
+            self.parts.unlifted(self, b)
         b.axpy(-1.0, self.lift)
         b.array[d.ddofs] = self.gsys.array[d.ddofs]
         return b
@@ -274,7 +251,7 @@ class Integrator:
             raise StepError(f"step {n + 1} (t = {t + self.dt:.6g}): {changed}")
         L = d.load(ts.load_time(t, self.dt), self._L_step) if self.time_dependent else d.L
         if self.parts:
-            self._lift_parts(U, t)
+            self.parts.lift(self, U, t)
         if ts.stateful and self.state is None:
             self.state = ts.start(self, U, V, t)
         b = ts.rhs(self, U, V, L, t)
@@ -295,37 +272,11 @@ class Integrator:
         Un_D = U.array[d.ddofs].copy() if self.parts else None
         ts.update(self, X, U, V, t)
         if self.parts:
-            self._reactions(info, X, U, Un_D)
+            self.parts.reactions(self, info, X, U, Un_D)
         if self.friction is not None:
-            self._friction_info(info, U.array, Un)
+            _friction.step_info(self, info, U.array, Un)
         info["gap_end"] = comm.allreduce(float(np.min(U.array[d.cdofs] - d.lb, initial=np.inf)), op=MPI.MIN)
         return info
-
-    def _lift_parts(self, U, t):
-        """The Dirichlet parts' values of the constrained iterate for the step from ``t``
-        (:meth:`~sdm_dolfinx.schemes.base.Scheme.dirichlet_iterate` of u_D(t + dt) and U^n) into
-        ``gsys``, and the lifting K g (collective)."""
-        d, ts = self.discretisation, self.time_scheme
-        for k, dofs in enumerate(d.part_dofs):
-            self.gsys.array[dofs] = ts.dirichlet_iterate(d.part_values(k, t + self.dt), U.array_r[dofs])
-        self.K_full.mult(self.gsys, self.lift)
-
-    def _reactions(self, info, X, U, Un_D):
-        """The step's reactions R = K X - b at the Dirichlet rows (the force the support exerts on the
-        body, b before the lifting), summed per part and prescribed component, and their work
-        R . (U^{n+1} - U^n) over the parts' dofs, reduced over the ranks, into ``info``
-        (``reactions``, in the order of :attr:`reaction_keys`, and ``dirichlet_work``)."""
-        d = self.discretisation
-        self.K_full.mult(X, self._KX)
-        R = self._KX.array_r[d.ddofs] - self._b_dirichlet
-        dU = U.array_r[d.ddofs] - Un_D
-        local = np.zeros(len(self.reaction_keys) + 1)
-        for i, (k, c) in enumerate(self.reaction_keys):
-            at = self._part_at[k]
-            local[i] = np.sum(R[at][d.part_components[k] == c])
-        local[-1] = sum(float(np.dot(R[at], dU[at])) for at in self._part_at)
-        total = d.comm.allreduce(local, op=MPI.SUM)
-        info["reactions"], info["dirichlet_work"] = [float(v) for v in total[:-1]], float(total[-1])
 
     def _coulomb_hint(self):
         """A failed Coulomb step: the Coulomb bound of the step problem, measured now, and the
@@ -333,24 +284,6 @@ class Integrator:
         if self.friction is None or self.friction.law != "coulomb":
             return ""
         return _friction_bound.failure_hint(self, self.friction.mu, _friction_bound.command_for(self))
-
-    def _friction_info(self, info, u, un):
-        """The step's tangential force, slip (U^{n+1} - U^n at the tangential dofs) and friction
-        work lam_T . (U^{n+1} - U^n)_t (<= 0), reduced over the ranks, into ``info`` (3-D: the
-        force's size and its components ``tangential_force_t``; ``slip`` per vertex its size)."""
-        comm = self.discretisation.comm
-        self.slip_t = u[self.tdofs] - un[self.tdofs]
-        lam_t = self.solver.lam_t
-        if lam_t.ndim == 1:
-            self.slip = self.slip_t
-            force, work = comm.allreduce(np.array([np.sum(lam_t), np.dot(lam_t, self.slip)]), op=MPI.SUM)
-            info.update(tangential_force=float(force), friction_work=float(work))
-            return
-        # 3-D: the force's two tangential components; slip (per vertex) is |(U^{n+1} - U^n)_t|
-        self.slip = np.linalg.norm(self.slip_t, axis=1)
-        total = comm.allreduce(np.r_[lam_t.sum(axis=0), np.sum(lam_t * self.slip_t)], op=MPI.SUM)
-        info.update(tangential_force=float(np.hypot(total[0], total[1])), tangential_force_t=total[:2].tolist(),
-                    friction_work=float(total[2]))
 
     @property
     def lam_t(self):
@@ -456,3 +389,5 @@ class Integrator:
         if self.factor_matrix is not None:
             self.factor_matrix.destroy()
         self.time_scheme.destroy(self)
+        if self.parts:
+            self.parts.destroy()
