@@ -186,6 +186,10 @@ def test_bad_parts_are_refused_in_one_line():
                              DirichletPart("b", left, lambda x, t: t, components=(1,))]), dt=0.01, T=0.02)
     simulate(shaken_bar([DirichletPart("a", left, lambda x, t: 0.0, components=(0,)),     # disjoint components
                          DirichletPart("b", left, lambda x, t: 0.0, components=(1,))]), dt=0.01, T=0.02)
+    legacy = shaken_bar()
+    legacy.dirichlet_facets, legacy.dirichlet_value = left, lambda x: np.zeros((2, x.shape[1]))
+    with pytest.raises(DiscretisationError, match="part 'left' shares prescribed dofs with dirichlet_facets"):
+        simulate(legacy, dt=0.01, T=0.02)
     with pytest.raises(ProblemInputError, match="part 'a': components must be distinct integers in 0..1"):
         shaken_bar([DirichletPart("a", left, lambda x, t: 0.0, components=(2,))])
     with pytest.raises(ProblemInputError, match="must be a distinct identifier"):
@@ -206,3 +210,25 @@ def test_command_line_runs_the_problem_file_and_refuses_newmark(tmp_path):
     p = subprocess.run(cmd + ["--scheme", "newmark", "--out", str(tmp_path / "b")], capture_output=True, text=True)
     assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1, p.stderr
     assert "does not take Dirichlet parts" in p.stderr
+
+
+def test_scalar_unknown_has_one_reaction_column_per_part():
+    """A scalar u (a 1-D bar, E = rho = 1, P2/P1): the parts' columns are reaction_<name>; the data
+    may be a number or an (n,) array; the midpoint scheme conserves J - dirichlet_work (1e-11 of
+    the energy scale) and momentum e^T M V changes by the sum of the reactions (1e-10)."""
+    msh = dmesh.create_interval(COMM, 10, [0.0, 1.0])
+    zero = fem.Constant(msh, PETSc.ScalarType(0.0))
+    end = lambda x0: (lambda m: dmesh.locate_entities_boundary(m, 0, lambda x: np.isclose(x[0], x0)))  # noqa: E731
+    p = Problem(name="bar1d", mesh=msh, shape=(), a=lambda u, w: ufl.inner(ufl.grad(u), ufl.grad(w)) * ufl.dx,
+                l=lambda w: zero * w * ufl.dx, u0=lambda x: np.zeros(x.shape[1]), v0=lambda x: np.zeros(x.shape[1]),
+                constraint_vertices=lambda m: np.zeros(0, dtype=np.int32), lower_bound=lambda x: np.zeros(x.shape[1]),
+                constraint_measure=lambda q: q * ufl.ds, probe=(0.5, 0.0), extra_columns=("momentum_x",),
+                dirichlet_parts=[DirichletPart("left", end(0.0), lambda x, t: 0.1 * (1 - np.cos(5 * t)) + 0 * x[0]),
+                                 DirichletPart("right", end(1.0), lambda x, t: 0.0)])
+    dt = 0.02
+    ts = simulate(p, pair="P2/P1", dt=dt, T=2.0).timeseries
+    assert [c for c in ts if c.startswith("reaction")] == ["reaction_left", "reaction_right"]
+    balance, scale = ts["energy"] - ts["dirichlet_work"], np.abs(ts["energy"]).max()
+    assert scale > 1e-3 and np.abs(balance - balance[0]).max() <= 1e-11 * scale
+    forces = ts["reaction_left"] + ts["reaction_right"]
+    assert np.abs(np.diff(ts["momentum_x"]) / dt - forces[1:]).max() <= 1e-10 * np.abs(forces).max()
