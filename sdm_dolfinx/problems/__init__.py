@@ -10,8 +10,8 @@ from sdm_dolfinx.problems.base import DirichletPart, Param, Problem, ProblemInpu
 from sdm_dolfinx.problems.registry import get, load_file, names, rebuild, register, resolve, spec_of_run  # noqa: F401
 from sdm_dolfinx.problems import ball, bar, block, disc, membrane, rod1d  # noqa: E402
 
-__all__ = ["DirichletPart", "Param", "Problem", "ProblemInputError", "ProblemSpec", "get", "load_file", "names", "rebuild", "register",
-           "resolve", "spec_of_run", "ball", "bar", "block", "disc", "membrane", "rod1d"]
+__all__ = ["DirichletPart", "Param", "Problem", "ProblemInputError", "ProblemSpec", "get", "load_file", "names",
+           "rebuild", "register", "resolve", "spec_of_run", "ball", "bar", "block", "disc", "membrane", "rod1d"]
 
 register(membrane.SPEC)
 register(disc.SPEC)

@@ -19,6 +19,8 @@ with M only (:mod:`.step_mass`). A contact treatment other than the exact one (p
 L is the vector assembled once, or, for a Problem that declares ``time``, L reassembled before
 every step at the time the scheme evaluates the load (:meth:`Scheme.load_time`). Before every
 step the data assembled once are checked unchanged (:class:`~sdm_dolfinx.method.frozen.FrozenData`).
+A Problem's Dirichlet parts (prescribed displacements that may move) are lifted at every step and
+their reactions reported by :mod:`.prescribed`.
 """
 from mpi4py import MPI
 
@@ -84,7 +86,8 @@ class Integrator:
         #: reactions and their work reported), or None
         self.parts = _prescribed.Prescribed() if discretisation.problem.dirichlet_parts else None
         refused = _friction.check_solver(self.friction and self.friction.law, vi_solver, linear)
-        refused = refused or [r for r in (self._refuse_contact(), self.parts and self.parts.refuse(self), ts.refuse(self)) if r]
+        parts_refused = self.parts.refuse(self) if self.parts else None
+        refused = refused or [r for r in (self._refuse_contact(), parts_refused, ts.refuse(self)) if r]
         if refused:
             raise DiscretisationError(refused[0])
         ts.setup(self)
