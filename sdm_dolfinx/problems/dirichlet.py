@@ -113,8 +113,10 @@ def validate_parts(problem: str, parts: Sequence[DirichletPart], shape: tuple[in
             comps = part.components
             if comps is not None:
                 n = shape[0] if shape else 0
-                bad = [c for c in comps if isinstance(c, bool) or not isinstance(c, (int, np.integer))
-                       or not 0 <= c < n]
+                seq = isinstance(comps, (tuple, list, np.ndarray))       # components=1 is not (1,)
+                bad = [c for c in (comps if seq else [comps]) if isinstance(c, bool)
+                       or not isinstance(c, (int, np.integer)) or not 0 <= c < n]
+                bad = bad or ([comps] if not seq else [])
                 if not shape or bad or not len(comps) or len(set(comps)) != len(comps):
                     raise ProblemInputError(
                         f"problem {problem!r}: Dirichlet part {part.name!r}: components must be distinct integers "

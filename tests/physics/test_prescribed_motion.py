@@ -192,6 +192,8 @@ def test_bad_parts_are_refused_in_one_line():
         simulate(legacy, dt=0.01, T=0.02)
     with pytest.raises(ProblemInputError, match="part 'a': components must be distinct integers in 0..1"):
         shaken_bar([DirichletPart("a", left, lambda x, t: 0.0, components=(2,))])
+    with pytest.raises(ProblemInputError, match=r"components must be .* \(got 1\)"):
+        shaken_bar([DirichletPart("a", left, lambda x, t: 0.0, components=1)])
     with pytest.raises(ProblemInputError, match="must be a distinct identifier"):
         shaken_bar([DirichletPart("a", left, lambda x, t: 0.0), DirichletPart("a", left, lambda x, t: 0.0)])
     with pytest.raises(DiscretisationError, match=r"part 'a': value\(x, t\) returned shape \(3,"):
