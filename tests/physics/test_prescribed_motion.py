@@ -202,8 +202,8 @@ def test_bad_parts_are_refused_in_one_line():
 
 @pytest.mark.skipif(COMM.size > 1, reason="serial: the command runs in a process of its own")
 def test_command_line_runs_the_problem_file_and_refuses_newmark(tmp_path):
-    """From the command line: the reaction columns in timeseries.csv; a scheme without Dirichlet
-    parts is refused in one line with exit status 2."""
+    """From the command line and a TOML configuration: the reaction columns in timeseries.csv; a
+    scheme without Dirichlet parts is refused in one line with exit status 2."""
     cmd = [sys.executable, "-m", "sdm_dolfinx", "run", "--problem-file", str(PUSHED), "--T", "1e-3"]
     p = subprocess.run(cmd + ["--out", str(tmp_path / "a"), "--quiet"], capture_output=True, text=True)
     assert p.returncode == 0, p.stderr
@@ -212,6 +212,11 @@ def test_command_line_runs_the_problem_file_and_refuses_newmark(tmp_path):
     p = subprocess.run(cmd + ["--scheme", "newmark", "--out", str(tmp_path / "b")], capture_output=True, text=True)
     assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1, p.stderr
     assert "does not take Dirichlet parts" in p.stderr
+    (tmp_path / "c.toml").write_text(f'problem-file = "{PUSHED}"\nT = 1e-3\nnu = 0.3\n')
+    p = subprocess.run([sys.executable, "-m", "sdm_dolfinx", "run", "--config", str(tmp_path / "c.toml"), "--out",
+                        str(tmp_path / "c"), "--quiet"], capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    assert (tmp_path / "c" / "timeseries.csv").read_text().splitlines()[0] == header
 
 
 def test_scalar_unknown_has_one_reaction_column_per_part():
