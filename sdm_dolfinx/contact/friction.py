@@ -40,6 +40,8 @@ keep both components).
 from dataclasses import dataclass
 from typing import Any, Optional
 
+from mpi4py import MPI
+
 import numpy as np
 
 from sdm_dolfinx.params import OptionError, Param, check_given
@@ -145,3 +147,23 @@ def contact_dofs(discretisation, friction):
         tdofs = np.column_stack([d.cdofs - comp + c for c in range(3) if c != comp]).astype(np.int32)
     thresholds = friction.threshold * d.cmeasure if friction.law == "tresca" else None
     return tdofs, thresholds
+
+
+def step_info(integ, info, u, un):
+    """The frictional step's tangential force, slip (U^{n+1} - U^n at the tangential dofs, kept as
+    ``integ.slip_t``) and friction work lam_T . (U^{n+1} - U^n)_t (<= 0), reduced over the ranks,
+    into ``info`` (3-D: the force's size and its components ``tangential_force_t``; ``integ.slip``
+    per vertex its size); ``integ`` is the run's Integrator."""
+    comm = integ.discretisation.comm
+    integ.slip_t = u[integ.tdofs] - un[integ.tdofs]
+    lam_t = integ.solver.lam_t
+    if lam_t.ndim == 1:
+        integ.slip = integ.slip_t
+        force, work = comm.allreduce(np.array([np.sum(lam_t), np.dot(lam_t, integ.slip)]), op=MPI.SUM)
+        info.update(tangential_force=float(force), friction_work=float(work))
+        return
+    # 3-D: the force's two tangential components; slip (per vertex) is |(U^{n+1} - U^n)_t|
+    integ.slip = np.linalg.norm(integ.slip_t, axis=1)
+    total = comm.allreduce(np.r_[lam_t.sum(axis=0), np.sum(lam_t * integ.slip_t)], op=MPI.SUM)
+    info.update(tangential_force=float(np.hypot(total[0], total[1])), tangential_force_t=total[:2].tolist(),
+                friction_work=float(total[2]))

@@ -14,7 +14,7 @@ from dolfinx import fem, mesh as dmesh
 from sdm_dolfinx import compat
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.method.frozen import FrozenData
-from sdm_dolfinx.method import masses, problem_data, quadrature
+from sdm_dolfinx.method import dirichlet as _parts, masses, problem_data, quadrature
 from sdm_dolfinx.method.pairs import MASS_TREATMENTS, get_pair
 
 #: an initial displacement below the bound by more than this times max(1, max |bound|) at a
@@ -259,31 +259,14 @@ class Discretisation:
         self.q1_of_c = vertex_to_dof(self.Q1, self.cverts)
 
     def _dirichlet(self):
-        p = self.problem
-        W = self.W
-        self.ddofs = np.zeros(0, dtype=np.int32)
-        self.g = fem.Function(W)        # Dirichlet values (zero elsewhere)
-        if p.dirichlet_facets is None:
-            return
-        msh = p.mesh
-        fdim = msh.topology.dim - 1
-        facets = np.asarray(p.dirichlet_facets(msh), dtype=np.int32)
-        msh.topology.create_connectivity(fdim, msh.topology.dim)
-        dofs = fem.locate_dofs_topological(W, fdim, facets)      # blocks
-        bs = W.dofmap.index_map_bs
-        dofs = (dofs[:, None] * bs + np.arange(bs)[None, :]).reshape(-1)
-        gfun = fem.Function(W)
-        gfun.interpolate(p.dirichlet_value)
-        self.ddofs = np.sort(dofs[dofs < owned_size(W)]).astype(np.int32)
-        self.g.x.array[self.ddofs] = gfun.x.array[self.ddofs]
-        self.g.x.scatter_forward()
-        if np.intersect1d(self.ddofs, self.cdofs).size:
-            # a Dirichlet dof is fixed anyway: drop it from the constraint set
-            keep = ~np.isin(self.cdofs, self.ddofs)
-            self.cverts, self.cdofs, self.lb = self.cverts[keep], self.cdofs[keep], self.lb[keep]
-            self.cmeasure, self.q1_of_c, self.cx = self.cmeasure[keep], self.q1_of_c[keep], self.cx[:, keep]
-        # collective on every rank (a rank without such a dof must not skip it: deadlock)
-        self.num_constraints = self.comm.allreduce(len(self.cdofs), op=MPI.SUM)
+        """``ddofs`` (the owned Dirichlet dofs), ``g`` (their values at t = 0) and the Dirichlet parts'
+        dofs (:func:`.dirichlet.setup`); a Dirichlet dof leaves the constraint set."""
+        _parts.setup(self)
+
+    def part_values(self, k, t, rate=False):
+        """The data of Dirichlet part ``k`` at time ``t`` (``rate``: its velocity) at its owned dofs
+        ``part_dofs[k]`` (collective; :func:`.dirichlet.part_values`)."""
+        return _parts.part_values(self, k, t, rate)
 
     def _boundary(self):
         """Owned dofs of W^h (the bounded component) on the constrained boundary -- the facets whose
@@ -335,11 +318,12 @@ class Discretisation:
         self.num_constraints = self.comm.allreduce(len(dofs), op=MPI.SUM)
 
     def _dirichlet_x(self):
-        """Coordinates (3, n) of the owned Dirichlet dofs (None without Dirichlet data)."""
+        """Coordinates (3, n) of the owned dofs of ``dirichlet_facets`` (None without them; the
+        Dirichlet parts are evaluated at every step)."""
         if self.problem.dirichlet_facets is None:
             return None
         bs = self.W.dofmap.index_map_bs
-        return self._dof_x()[np.unique(self.ddofs // bs)].T
+        return self._dof_x()[np.unique(self._fixed_ddofs // bs)].T
 
     def _dof_x(self):
         """W's dof coordinates (blocks, owned and ghost), tabulated once."""
@@ -365,7 +349,9 @@ class Discretisation:
         problem_data.initial_finite(p, U, V, self.comm)
         if self.ddofs.size:
             U.array[self.ddofs] = self.g.x.array[self.ddofs]
-            V.array[self.ddofs] = 0.0
+            V.array[self._fixed_ddofs] = 0.0
+        for k, dofs in enumerate(self.part_dofs):       # a part's data may not start at rest (collective)
+            V.array[dofs] = self.part_values(k, 0.0, rate=True)
         self._check_initial(U)
         return U, V
 

@@ -51,7 +51,8 @@ class FrozenData:
         if xd is not None:
             items.append(("dirichlet_value(x) on the Dirichlet boundary",
                           lambda: np.asarray(problem.dirichlet_value(xd), dtype=float).copy(),
-                          "time-dependent Dirichlet data is not supported", False))
+                          "a dirichlet_value that moves is not supported: declare moving data as a Dirichlet "
+                          "part (Problem.dirichlet_parts, value(x, t))", False))
         self.items = items
         self.start = [get() for _, get, _, _ in items]
 

@@ -28,6 +28,10 @@ from sdm_dolfinx import compat
 from sdm_dolfinx.errors import SdmError
 from sdm_dolfinx.params import PARAM_TYPES as PARAM_TYPES  # noqa: F401  (declared once for problems and runs)
 from sdm_dolfinx.params import Param as Param
+from sdm_dolfinx.problems.dirichlet import DirichletPart as DirichletPart
+from sdm_dolfinx.problems.dirichlet import MeshEntities as MeshEntities
+from sdm_dolfinx.problems.dirichlet import validate_parts
+from sdm_dolfinx.problems.errors import ProblemInputError as ProblemInputError
 
 if TYPE_CHECKING:
     from dolfinx.fem import Constant
@@ -37,8 +41,6 @@ if TYPE_CHECKING:
 UFL = Any
 #: ``x -> values`` at the points x of shape (3, n), as ``Function.interpolate`` takes it
 PointFunction = Callable[[npt.NDArray[np.float64]], npt.ArrayLike]
-#: ``mesh -> local entity (vertex or facet) indices``
-MeshEntities = Callable[["Mesh"], npt.ArrayLike]
 
 
 #: the time-series columns a Problem may add (``extra_columns``): sum of the normal multipliers,
@@ -68,8 +70,13 @@ class Problem:
         constraint_measure: ``q -> UFL form`` of the P1 test function q; its value at a
             vertex is that vertex's lumped measure, so stress = nodal multiplier / measure.
         dirichlet_facets: ``mesh -> local facet indices`` with u = dirichlet_value, or None.
-        dirichlet_value: callable ``x -> values``, constant in time: time-dependent Dirichlet
-            data is not supported (a run whose ``dirichlet_value`` changes stops with an error).
+        dirichlet_value: callable ``x -> values``, constant in time (a run whose
+            ``dirichlet_value`` changes stops with an error): data that move, or whose reaction
+            force is wanted, are declared as ``dirichlet_parts``.
+        dirichlet_parts: named boundary parts with prescribed, possibly time-dependent, data
+            u = u_D(x, t) on some or all components (:class:`DirichletPart`); each adds its
+            reaction columns and the run the column ``dirichlet_work`` (docs/outputs.md). Taken
+            by the midpoint and backward Euler schemes (the others refuse them in one line).
         probe: the point (x, y) where the displacement (and, at the nearest constrained
             vertex, the contact stress) is recorded.
         extra_columns: additional time-series columns among :data:`EXTRA_COLUMNS`:
@@ -123,6 +130,7 @@ class Problem:
     source_sha256: Optional[str] = None
     time: Optional[Constant] = None
     stress: Optional[Callable[[UFL], UFL]] = None
+    dirichlet_parts: Sequence[DirichletPart] = ()
 
     def __post_init__(self) -> None:
         self.validate()
@@ -158,6 +166,7 @@ class Problem:
         if self.time is not None and (not hasattr(self.time, "value") or np.shape(self.time.value) != ()):
             raise ProblemInputError(f"problem {self.name!r}: time must be a scalar fem.Constant used by l(w) "
                                     f"(got {type(self.time).__name__})")
+        validate_parts(self.name, self.dirichlet_parts, shape)
         rho = self.rho
         if isinstance(rho, bool) or not isinstance(rho, (int, float, np.integer, np.floating)) \
                 or not (np.isfinite(rho) and rho > 0):
@@ -179,11 +188,9 @@ class Problem:
             d["source_sha256"] = self.source_sha256
         if self.time is not None:
             d["load"] = "time-dependent (reassembled every step at the scheme's load time)"
+        if self.dirichlet_parts:
+            d["dirichlet_parts"] = [part.describe(tuple(self.shape)) for part in self.dirichlet_parts]
         return d
-
-
-class ProblemInputError(SdmError, ValueError):
-    """Parameter values a problem refuses (the message may join several, with '; ')."""
 
 
 def label(problem: Any) -> str:

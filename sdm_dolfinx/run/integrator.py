@@ -19,6 +19,8 @@ with M only (:mod:`.step_mass`). A contact treatment other than the exact one (p
 L is the vector assembled once, or, for a Problem that declares ``time``, L reassembled before
 every step at the time the scheme evaluates the load (:meth:`Scheme.load_time`). Before every
 step the data assembled once are checked unchanged (:class:`~sdm_dolfinx.method.frozen.FrozenData`).
+A Problem's Dirichlet parts (prescribed displacements that may move) are lifted at every step and
+their reactions reported by :mod:`.prescribed`.
 """
 from mpi4py import MPI
 
@@ -27,6 +29,7 @@ import numpy as np
 from sdm_dolfinx.method import gaps as _gaps, iterative as _iterative, step_matrix as _step_matrix
 from sdm_dolfinx.contact import friction as _friction, friction_bound as _friction_bound
 from sdm_dolfinx.contact.context import StepContext
+from sdm_dolfinx.run import prescribed as _prescribed
 from sdm_dolfinx import schemes
 from sdm_dolfinx.errors import StepError
 from sdm_dolfinx.method.errors import DiscretisationError
@@ -79,8 +82,12 @@ class Integrator:
         self.nW = discretisation.A.getLocalSize()[0]
         self.friction = friction if friction is not None and friction.on else None
         self.treatment, self.state = None, None
+        #: the Problem's Dirichlet parts (:class:`~.prescribed.Prescribed`: data lifted at every step,
+        #: reactions and their work reported), or None
+        self.parts = _prescribed.Prescribed() if discretisation.problem.dirichlet_parts else None
         refused = _friction.check_solver(self.friction and self.friction.law, vi_solver, linear)
-        refused = refused or [r for r in (self._refuse_contact(), ts.refuse(self)) if r]
+        parts_refused = self.parts.refuse(self) if self.parts else None
+        refused = refused or [r for r in (self._refuse_contact(), parts_refused, ts.refuse(self)) if r]
         if refused:
             raise DiscretisationError(refused[0])
         ts.setup(self)
@@ -181,6 +188,8 @@ class Integrator:
         # a time-dependent load: the step's L, and L at the time of a recorded state (energies)
         self._L_step = d.L.copy() if self.time_dependent else None
         self._L_state, self._L_state_t = (d.L.copy(), 0.0) if self.time_dependent else (None, None)
+        if self.parts:
+            self.parts.build(self)
 
     def load(self, t=None):
         """The load vector L at time ``t`` (the vector assembled once when L does not depend on
@@ -223,6 +232,8 @@ class Integrator:
     def lifted(self, b):
         """b with the Dirichlet lifting: b - K g off the Dirichlet dofs, g on them (in place)."""
         d = self.discretisation
+        if self.parts:              # the reactions are K X - b at the Dirichlet rows, b before the lifting
+            self.parts.unlifted(self, b)
         b.axpy(-1.0, self.lift)
         b.array[d.ddofs] = self.gsys.array[d.ddofs]
         return b
@@ -242,6 +253,8 @@ class Integrator:
         if changed:
             raise StepError(f"step {n + 1} (t = {t + self.dt:.6g}): {changed}")
         L = d.load(ts.load_time(t, self.dt), self._L_step) if self.time_dependent else d.L
+        if self.parts:
+            self.parts.lift(self, U, t)
         if ts.stateful and self.state is None:
             self.state = ts.start(self, U, V, t)
         b = ts.rhs(self, U, V, L, t)
@@ -259,9 +272,12 @@ class Integrator:
         imposed = ts.imposed_gap(self, X) if self.treatment is None else float("inf")
         info["gap_imposed"] = comm.allreduce(imposed, op=MPI.MIN)
         Un = U.array.copy() if self.friction is not None else None
+        Un_D = U.array[d.ddofs].copy() if self.parts else None
         ts.update(self, X, U, V, t)
+        if self.parts:
+            self.parts.reactions(self, info, X, U, Un_D)
         if self.friction is not None:
-            self._friction_info(info, U.array, Un)
+            _friction.step_info(self, info, U.array, Un)
         info["gap_end"] = comm.allreduce(float(np.min(U.array[d.cdofs] - d.lb, initial=np.inf)), op=MPI.MIN)
         return info
 
@@ -271,24 +287,6 @@ class Integrator:
         if self.friction is None or self.friction.law != "coulomb":
             return ""
         return _friction_bound.failure_hint(self, self.friction.mu, _friction_bound.command_for(self))
-
-    def _friction_info(self, info, u, un):
-        """The step's tangential force, slip (U^{n+1} - U^n at the tangential dofs) and friction
-        work lam_T . (U^{n+1} - U^n)_t (<= 0), reduced over the ranks, into ``info`` (3-D: the
-        force's size and its components ``tangential_force_t``; ``slip`` per vertex its size)."""
-        comm = self.discretisation.comm
-        self.slip_t = u[self.tdofs] - un[self.tdofs]
-        lam_t = self.solver.lam_t
-        if lam_t.ndim == 1:
-            self.slip = self.slip_t
-            force, work = comm.allreduce(np.array([np.sum(lam_t), np.dot(lam_t, self.slip)]), op=MPI.SUM)
-            info.update(tangential_force=float(force), friction_work=float(work))
-            return
-        # 3-D: the force's two tangential components; slip (per vertex) is |(U^{n+1} - U^n)_t|
-        self.slip = np.linalg.norm(self.slip_t, axis=1)
-        total = comm.allreduce(np.r_[lam_t.sum(axis=0), np.sum(lam_t * self.slip_t)], op=MPI.SUM)
-        info.update(tangential_force=float(np.hypot(total[0], total[1])), tangential_force_t=total[:2].tolist(),
-                    friction_work=float(total[2]))
 
     @property
     def lam_t(self):
@@ -394,3 +392,5 @@ class Integrator:
         if self.factor_matrix is not None:
             self.factor_matrix.destroy()
         self.time_scheme.destroy(self)
+        if self.parts:
+            self.parts.destroy()

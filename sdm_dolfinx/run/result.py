@@ -44,6 +44,24 @@ def friction_columns(problem: Problem) -> tuple[str, ...]:
         return FRICTION_COLUMNS
     names = ["xyz"[c] for c in axes]
     return (*(f"tangential_force_{a}" for a in names), *(f"slip_probe_{a}" for a in names), *FRICTION_COLUMNS[2:])
+
+
+#: the column of a run whose Problem declares Dirichlet parts: the cumulative work of their reactions on
+#: the prescribed motion, sum over the steps of R . (U^{n+1} - U^n) at the parts' dofs (the midpoint scheme
+#: conserves energy - dirichlet_work without impact); the reactions are ``reaction_<part>_<x|y|z>``
+DIRICHLET_WORK = "dirichlet_work"
+
+
+def dirichlet_columns(problem: Problem) -> tuple[str, ...]:
+    """The reaction columns of ``problem``'s Dirichlet parts (per part and prescribed component) and
+    :data:`DIRICHLET_WORK`, or () without parts."""
+    parts = tuple(problem.dirichlet_parts)
+    if not parts:
+        return ()
+    shape = tuple(problem.shape)
+    return (*(c for part in parts for c in part.columns(shape)), DIRICHLET_WORK)
+
+
 #: the column of a run whose contact is not exact (penalty, Nitsche): the energy stored in the
 #: contact term at U^{n+1} (``Integrator.contact_energy``); ``energy`` includes it
 CONTACT_ENERGY = "contact_energy"
@@ -135,8 +153,9 @@ class TimeSeries:
         boundary = (BOUNDARY_GAP,) if d.num_boundary_dofs else ()
         friction_cols = friction_columns(problem) if friction else ()
         contact = (CONTACT_ENERGY,) if contact_energy else ()
+        self.reaction_columns = dirichlet_columns(problem)[:-1]
         self.columns: tuple[str, ...] = (BASE_COLUMNS + contact + tuple(problem.extra_columns) + friction_cols
-                                         + boundary)
+                                         + boundary + dirichlet_columns(problem))
         self.data = {c: np.zeros(nsteps + 1) for c in self.columns}
         self.comm = problem.mesh.comm
         if boundary:
@@ -172,6 +191,11 @@ class TimeSeries:
             row["momentum_x"] = f.momentum(V, 0)
         if "dissipated" in self.columns:
             self._friction_row(row, n, step or {}, slip)
+        if DIRICHLET_WORK in self.columns:      # the step's reactions (0 in row 0) and the cumulative work
+            info = step or {}
+            row.update(zip(self.reaction_columns, info.get("reactions", [0.0] * len(self.reaction_columns))))
+            before = self.data[DIRICHLET_WORK][n - 1] if n > 0 else 0.0    # a restart's: read back from the CSV
+            row[DIRICHLET_WORK] = before + info.get("dirichlet_work", 0.0)
         if "elastic" in self.columns:            # 1/2 U^T A U = potential + U^T L
             row["elastic"] = pot + U.dot(f.load(t))
         if BOUNDARY_GAP in self.columns:

@@ -2,6 +2,9 @@
 
 Dissipative (first order); the constraint holds exactly at the end of each step. The
 equation holds at t_{n+1}: a time-dependent load enters as L(t_{n+1}).
+Prescribed displacements (a Problem's Dirichlet parts) enter at t_{n+1} too: X = U^{n+1} =
+u_D(t_{n+1}) at the part's dofs; their reaction (the residual K X - b there) and its work
+R . (U^{n+1} - U^n) are reported, and the scheme's dissipation makes J - W_D decrease.
 """
 from sdm_dolfinx.schemes.base import Scheme
 
@@ -11,6 +14,11 @@ class BackwardEuler(Scheme):
     factor = 1.0
     constrained = "U^{n+1}"
     load_theta = 1.0                # L(t_{n+1})
+    moving_dirichlet = True
+
+    def dirichlet_iterate(self, u_next, Un):
+        """X = U^{n+1} = u_D(t_{n+1})."""
+        return u_next
 
     def displacement(self, x, Un):
         return x

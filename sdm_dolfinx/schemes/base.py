@@ -54,6 +54,8 @@ class Scheme:
         explicit: the step matrix holds no stiffness (c_A = 0): the step is CFL-bounded.
         stateful: the scheme keeps state between steps beyond (U, V) (a checkpoint of U and V
             cannot restart it).
+        moving_dirichlet: the scheme takes the Problem's Dirichlet parts (data that may move,
+            :meth:`dirichlet_iterate`); the others refuse a Problem declaring any, in one line.
     """
     name: Optional[str] = None
     factor: Optional[float] = None
@@ -62,6 +64,7 @@ class Scheme:
     options: tuple[Param, ...] = ()
     explicit: bool = False
     stateful: bool = False
+    moving_dirichlet: bool = False
 
     # ------------------------------------------------------------------ set-up
     def configure(self: _S, options: Optional[Mapping[str, Any]] = None) -> _S:
@@ -122,6 +125,12 @@ class Scheme:
         """The step's right-hand side b (``integ.b``, Dirichlet lifting applied) for the state
         (U^n, V^n) at time t and the step's load vector L."""
         return integ.alpha_rhs(U, V, L)
+
+    def dirichlet_iterate(self, u_next: Array, Un: Array) -> Array:
+        """The constrained iterate X at a Dirichlet part's dofs for which :meth:`update` gives
+        U^{n+1} = ``u_next`` = u_D(t_{n+1}) from ``Un`` = U^n there (schemes with
+        :attr:`moving_dirichlet`)."""
+        raise NotImplementedError(f"scheme {self.name!r} does not take Dirichlet parts")
 
     def guess(self, integ: Integrator, U: PETSc.Vec, V: PETSc.Vec, X: PETSc.Vec) -> None:
         """The solver's initial guess in X (default: U^n, and V^n for the block variant)."""

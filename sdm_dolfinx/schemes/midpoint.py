@@ -6,6 +6,19 @@ midpoint, so U^{n+1} itself may dip below the bound: by O(dt) when U^0 is static
 mass's massless modes, by O(h) whatever dt when it is not (the midpoint rule's stability function
 is -1 at infinity: such a mode alternates, validation/rod_contact.py). The equation of (14) holds at
 t_{n+1/2}: a time-dependent load enters as L(t_{n+1/2}) (second order).
+
+Prescribed displacements (a Problem's Dirichlet parts, u = u_D(x, t)): the unknown X = U^{n+1/2}
+takes (U^n + u_D(t_{n+1}))/2 at the part's dofs, which is (u_D(t_n) + u_D(t_{n+1}))/2 since U^0 =
+u_D(0) there, so that U^{n+1} = 2 X - U^n = u_D(t_{n+1}) exactly at every step (u_D(t_{n+1/2})
+instead would make U^{n+1} drift from the data by O(dt^2) per step). The velocity there follows
+the scheme's own rule, (V^n + V^{n+1})/2 = (U^{n+1} - U^n)/dt. The part's reaction R (the
+residual K X - b at its rows: M (Vbar^{n+1} - Vbar^n)/dt + A U^{n+1/2} - L) then enters the
+same identity as the contact force, so that
+
+    J^{n+1} - J^n = (lam + R) . (U^{n+1} - U^n),
+
+and with W_D the sum over the steps of R . (U^{n+1} - U^n) (the column ``dirichlet_work``),
+J - W_D is conserved to round-off without impact (tests/physics/test_prescribed_motion.py).
 """
 from sdm_dolfinx.schemes.base import Scheme
 
@@ -15,6 +28,11 @@ class Midpoint(Scheme):
     factor = 2.0
     constrained = "U^{n+1/2}"
     load_theta = 0.5                # L(t_{n+1/2})
+    moving_dirichlet = True
+
+    def dirichlet_iterate(self, u_next, Un):
+        """X = (U^n + u_D(t_{n+1}))/2: U^{n+1} = 2 X - U^n = u_D(t_{n+1}) exactly (module docstring)."""
+        return 0.5 * (u_next + Un)
 
     def displacement(self, x, Un):
         return 2.0 * x - Un

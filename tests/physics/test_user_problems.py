@@ -206,7 +206,8 @@ def test_scheme_without_load_time_refuses_a_time_dependent_load():
 
 
 def test_dirichlet_value_changed_during_the_run_stops_it():
-    """Time-dependent Dirichlet data is not supported: a dirichlet_value that changes is refused."""
+    """dirichlet_value is evaluated once: one that changes is refused (moving data are Dirichlet parts,
+    tests/physics/test_prescribed_motion.py)."""
     box = {"g": 0.0}
     p = block(floor=False, v0=0.0, n=2, clamp_top=True)
     p.dirichlet_value = lambda x: np.vstack([np.zeros(x.shape[1]), np.full(x.shape[1], box["g"])])
