@@ -14,7 +14,7 @@ from dolfinx import fem, mesh as dmesh
 from sdm_dolfinx import compat
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.method.frozen import FrozenData
-from sdm_dolfinx.method import masses, problem_data, quadrature
+from sdm_dolfinx.method import equilibrium, masses, problem_data, quadrature
 from sdm_dolfinx.method.pairs import MASS_TREATMENTS, get_pair
 
 #: an initial displacement below the bound by more than this times max(1, max |bound|) at a
@@ -355,13 +355,20 @@ class Discretisation:
         nH = (nW if self.H is None else self.H.dofmap.index_map.size_global * self.H.dofmap.index_map_bs)
         return {"dim_W": int(nW), "dim_H": int(nH), "N_g": int(self.num_constraints)}
 
-    def initial_state(self):
-        """(U0, Vbar0): u0 (an equilibrium start's ``for_constraint(kind)``) and v0 in W, Dirichlet values imposed."""
+    def initial_state(self, friction=None, contact="exact"):
+        """(U0, Vbar0): u0 (an equilibrium start's ``for_constraint(kind)``; ``"equilibrium"``: the static
+        solution of this discretisation with the run's ``friction`` and ``contact``, :mod:`.equilibrium`) and v0
+        in W, Dirichlet values imposed."""
         p = self.problem
         u0, v0 = fem.Function(self.W), fem.Function(self.W)
-        u0.interpolate(getattr(p.u0, "for_constraint", lambda kind: p.u0)(self.constrain))
+        if not isinstance(p.u0, str):
+            u0.interpolate(getattr(p.u0, "for_constraint", lambda kind: p.u0)(self.constrain))
         v0.interpolate(p.v0)
         U, V = compat.petsc_vec(u0).copy(), compat.petsc_vec(v0).copy()
+        if isinstance(p.u0, str):       # validated: equilibrium.EQUILIBRIUM
+            Us = equilibrium.static_displacement(self, friction, contact)
+            U.array[:] = Us.array_r         # into the ghosted vector of W (owned entries: the same layout)
+            Us.destroy()
         problem_data.initial_finite(p, U, V, self.comm)
         if self.ddofs.size:
             U.array[self.ddofs] = self.g.x.array[self.ddofs]
