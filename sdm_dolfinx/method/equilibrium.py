@@ -135,15 +135,19 @@ def _pins(N, fixed, comm):
     return np.array(pins, dtype=np.int64)
 
 
-def _solve_fixed(A, L, dofs, values, comm):
-    """A u = L with u = ``values`` at the owned local indices ``dofs``: symmetric elimination, MUMPS.
-    Returns (u, KSP converged reason)."""
+def _solve_fixed(A, L, dofs, values, comm, blocks=()):
+    """(A + D) u = L with u = ``values`` at the owned local indices ``dofs``: symmetric elimination, MUMPS;
+    D: the ``blocks`` [(owned local indices, square matrix)] added to A. Returns (u, KSP converged reason)."""
     r0 = A.getOwnershipRange()[0]
     rows = (r0 + np.asarray(dofs, dtype=np.int64)).astype(PETSc.IntType)
     x0, b, u = A.createVecRight(), L.copy(), A.createVecRight()
     x0.setValues(rows, np.asarray(values, dtype=PETSc.ScalarType))
     x0.assemble()
     K = A.copy()
+    for idx, block in blocks:
+        g = (r0 + np.asarray(idx, dtype=np.int64)).astype(PETSc.IntType)
+        K.setValues(g, g, np.asarray(block, dtype=PETSc.ScalarType), addv=PETSc.InsertMode.ADD_VALUES)
+    K.assemble()
     K.zeroRowsColumns(rows, 1.0, x0, b)
     ksp = PETSc.KSP().create(comm)
     ksp.setOperators(K)
@@ -208,18 +212,25 @@ def static_displacement(d, friction=None, contact="exact"):
     low = comm.allreduce(float(np.min(gap0, initial=np.inf)), op=MPI.MIN)
     active = gap0 <= (max(low, 0.0) + RTOL * size)
     gvals = d.g.x.array[d.ddofs]
+    m, nt = tdofs.shape
+    stick = np.ones(m, dtype=bool)                  # with friction: an active dof sticks, or slips along sdir
+    sdir, bound, ulen = np.zeros((m, nt)), np.zeros(m), np.zeros(m)
     r = d.A.createVecLeft()
     for _ in range(MAX_ITER):
-        stuck = tdofs[active].reshape(-1)
+        slip = active & ~stick
+        stuck = tdofs[active & stick].reshape(-1)
         dofs = np.concatenate([d.ddofs, d.cdofs[active], stuck]).astype(np.int64)
         values = np.concatenate([gvals, d.lb[active], np.zeros(len(stuck))])
+        b = L.copy()                                # the load, and the friction force -bound s where it slips
+        if slip.any():
+            b.array[tdofs[slip].reshape(-1)] -= (bound[slip, None] * sdir[slip]).reshape(-1)
         fixed = np.zeros(nloc, dtype=bool)
         fixed[dofs] = True
         pins = np.zeros(0, dtype=np.int64)
         coef = _free_motions(R, fixed, comm) if R.shape[1] else np.zeros((0, 0))
         N = R @ coef if coef.size else np.zeros((nloc, 0))
         if N.shape[1]:
-            work = comm.allreduce(N.T @ L.array, op=MPI.SUM)
+            work = comm.allreduce(N.T @ b.array, op=MPI.SUM)
             bad = np.flatnonzero(np.abs(work) > RTOL * load * np.sqrt(comm.allreduce(nloc, op=MPI.SUM)))
             if bad.size:
                 j = bad[np.argmax(np.abs(work[bad]))]
@@ -228,13 +239,18 @@ def static_displacement(d, friction=None, contact="exact"):
                         else "neither the active contact (frictionless) nor Dirichlet data fix")
                 raise StaticStartError(
                     f"{who}: no static equilibrium: {held} {name}, and the load works along it (the body would "
-                    f"{'lift off or slide' if law == 'none' else 'lift off'}: {d.num_constraints} constrained, "
-                    f"{comm.allreduce(int(active.sum()), op=MPI.SUM)} in contact); hold it (friction, Dirichlet "
-                    f"data) or start from rest")
+                    f"{'lift off or slide' if law == 'none' else 'lift off or slip'}: {d.num_constraints} "
+                    f"constrained, {comm.allreduce(int(active.sum()), op=MPI.SUM)} in contact); hold it "
+                    f"({'friction, ' if law == 'none' else ''}Dirichlet data) or start from rest")
             pins = _pins(N, fixed, comm)
-        U, reason = _solve_fixed(d.A, L, np.r_[dofs, pins], np.r_[values, np.zeros(len(pins))], comm)
+        # 3-D: Newton on the slip direction, -bound u_t / |u_t| ~ -bound s - bound / |u_t| (I - s s^T) u_t
+        blocks = [(tdofs[i], bound[i] / ulen[i] * (np.eye(nt) - np.outer(sdir[i], sdir[i])))
+                  for i in np.flatnonzero(slip & (ulen > 0))] if nt > 1 else []
+        U, reason = _solve_fixed(d.A, b, np.r_[dofs, pins], np.r_[values, np.zeros(len(pins))], comm, blocks)
         d.A.mult(U, r)
-        r.axpy(-1.0, L)
+        r.axpy(-1.0, b)
+        for idx, block in blocks:
+            r.array[idx] += block @ U.array[idx]
         free = ~fixed
         free[pins] = False
         resid = comm.allreduce(float(np.max(np.abs(r.array[free]), initial=0.0)), op=MPI.MAX)
@@ -254,40 +270,52 @@ def static_displacement(d, friction=None, contact="exact"):
             G = comm.allreduce(MN.T @ N, op=MPI.SUM)
             c = np.linalg.solve(G, comm.allreduce(MN.T @ U.array, op=MPI.SUM))
             U.array[:] -= N @ c
+        d.A.mult(U, r)
+        r.axpy(-1.0, L)                 # the obstacle's reactions: normal, and tangential (friction)
+        b.destroy()
         reaction, gap = r.array[d.cdofs], U.array[d.cdofs] - d.lb
         release = active & (reaction < -RTOL * load)
         add = ~active & (gap < -RTOL * size)
-        changes = comm.allreduce(int(release.sum() + add.sum()), op=MPI.SUM)
-        if not changes:
+        changes = int(release.sum() + add.sum())
+        if law != "none":
+            changes += _stick_or_slip(d, friction, r.array, U.array, tdofs, active & ~release, stick, sdir, bound,
+                                      ulen, RTOL * load)
+        if not comm.allreduce(changes, op=MPI.SUM):
             break
         active = (active & ~release) | add
+        stick[add] = True
         U.destroy()
     else:
         raise StaticStartError(f"{who}: the static contact problem found no active set in {MAX_ITER} changes")
-    if law != "none":
-        _check_cone(d, friction, r.array, tdofs, active, who, load)
     r.destroy(), L.destroy()
     return U
 
 
-def _check_cone(d, friction, r, tdofs, active, who, load):
-    """StaticStartError when a sticking dof's tangential reaction exceeds its friction bound."""
-    comm = d.comm
-    lam_n, lam_t = r[d.cdofs[active]], np.linalg.norm(r[tdofs[active]], axis=1)
-    bound = (friction.mu * lam_n if friction.law == "coulomb"
-             else friction.threshold * d.cmeasure[active])
-    over = lam_t > bound + RTOL * load
-    count = comm.allreduce(int(over.sum()), op=MPI.SUM)
-    if not count:
-        return
-    if friction.law == "coulomb":
-        ratio = comm.allreduce(float(np.max(lam_t[over] / np.maximum(lam_n[over], np.finfo(float).tiny))),
-                               op=MPI.MAX)
-        need = f"|lambda_T| / lambda_N up to {ratio:.4g} > mu = {friction.mu:g}"
-    else:
-        ratio = comm.allreduce(float(np.max(lam_t[over] / d.cmeasure[active][over])), op=MPI.MAX)
-        need = f"|lambda_T| / measure up to {ratio:.4g} > tresca_threshold = {friction.threshold:g}"
-    total = comm.allreduce(int(active.sum()), op=MPI.SUM)
-    raise StaticStartError(f"{who}: no sticking equilibrium: at {count} of the {total} nodes in contact the "
-                           f"tangential reaction exceeds the friction bound ({need}): the body would slip there "
-                           f"(a static solution with slip is not computed); start from rest")
+def _stick_or_slip(d, friction, r, u, tdofs, active, stick, sdir, bound, ulen, tol):
+    """One update of the stick and slip sets (in place) after a static solve; the number of changes.
+
+    A sticking dof whose tangential reaction leaves the cone (|r_t| > bound, Coulomb mu r_n, Tresca
+    s m_i) slips from now on, along -r_t / |r_t| with the reaction -bound s; a slipping dof whose
+    displacement u_t went against its slip direction (u_t . s <= 0) sticks again; a slipping dof takes
+    the direction of u_t (3-D) and the bound of the new normal reaction (Coulomb): a change of either
+    beyond ``tol`` counts, so the loop ends at a fixed point."""
+    lam_n, lam_t, ut = r[d.cdofs], r[tdofs], u[tdofs]
+    new = (friction.mu * np.maximum(lam_n, 0.0) if friction.law == "coulomb"
+           else friction.threshold * d.cmeasure)
+    norm_t = np.linalg.norm(lam_t, axis=1)
+    slipping = active & ~stick
+    to_slip = active & stick & (norm_t > new + tol)
+    dot = np.sum(ut * sdir, axis=1)
+    to_stick = slipping & (dot <= 0.0)
+    keep = slipping & ~to_stick
+    norm_u = np.linalg.norm(ut, axis=1)
+    turn = np.zeros(len(stick))
+    if keep.any():
+        s_new = ut[keep] / norm_u[keep, None]
+        turn[keep] = np.linalg.norm(s_new - sdir[keep], axis=1) * new[keep]
+        sdir[keep], ulen[keep] = s_new, norm_u[keep]
+    moved = keep & ((np.abs(new - bound) > tol) | (turn > tol))
+    sdir[to_slip], ulen[to_slip | to_stick] = -lam_t[to_slip] / norm_t[to_slip, None], 0.0
+    stick[to_slip], stick[to_stick] = False, True
+    bound[:] = new
+    return int(to_slip.sum() + to_stick.sum() + moved.sum())
