@@ -14,12 +14,14 @@ until neither happens. Started there with zero velocity a run stays there: with
 U^n = U_s the midpoint scheme's step (and backward Euler's) is solved by U^{n+1} = U_s with the
 multipliers r_c, so the contact force is the load's normal part at every step.
 
-With friction (the run's ``friction``, Coulomb or Tresca) the active dofs also stick: their
-tangential dofs hold U_t = 0 (the body placed unstressed, then loaded while stuck), and the
-tangential reactions must lie in the friction cone (Coulomb |r_t| <= mu r_c, Tresca
-|r_t| <= s m_i): a sticking equilibrium is then an equilibrium of the frictional run too. Where
-they do not (the load would make the body slip) it is refused in one line: no static
-solution with slip is computed.
+With friction (the run's ``friction``, Coulomb or Tresca) the static problem is the first load
+step from the unstressed body: an active node sticks (U_t = 0) while its tangential reaction lies
+in the cone (Coulomb |r_t| <= mu r_c, Tresca |r_t| <= s m_i), else it slips with the reaction
+-bound U_t / |U_t| on the cone's edge; the stick and slip sets, the slip directions (3-D: a Newton
+step on -bound U_t / |U_t|) and Coulomb's bound mu r_c are updated in the same loop until they
+are unchanged (to the relative tolerance :data:`RTOL`). Started there, the run's first slip
+d = X_t - U_t is 0 with |lam_T| <= bound: the body stays at rest (a sticking block on an incline
+whose contact edge slips).
 
 A rigid motion that A does not resist (the translations and rotations for a vector u, the
 constant for a scalar u, where ``A r = 0``) and that neither the active contact, the sticking
@@ -181,13 +183,13 @@ def _load_at_zero(d):
 
 def static_displacement(d, friction=None, contact="exact"):
     """The static displacement U_s (a PETSc vector of W^h) of the Discretisation ``d`` (the module's
-    docstring); ``friction`` (an object with ``law``, ``mu``, ``threshold``, or None) sticks the active
-    dofs. Collective.
+    docstring); ``friction`` (an object with ``law``, ``mu``, ``threshold``, or None) holds the active
+    dofs tangentially (stick, or slip at the cone's edge). Collective.
 
     Raises:
         StaticStartError: a contact treatment other than "exact" (its equilibrium penetrates), a free
-            rigid motion along which the load works, a matrix singular otherwise, tangential reactions
-            outside the friction cone, no active set in :data:`MAX_ITER` changes.
+            rigid motion along which the load works (a body that would lift off, slide or slip as a
+            whole), a matrix singular otherwise, no active set in :data:`MAX_ITER` changes.
     """
     p, comm = d.problem, d.comm
     who = f"{label(p)}: u0 = 'equilibrium'"
