@@ -138,6 +138,7 @@ def test_membrane_starts_at_its_static_obstacle_solution():
     assert global_max(gap * lam) <= 1e-12 * scale
     assert global_max(U.array[d.ddofs] - 0.02) <= 1e-15
     res = simulate(p, pair="P1/P1", dt=0.01, T=0.1)
+    assert res.info["problem"]["start"].startswith("equilibrium")          # run.json records it
     assert global_max(res.U.array - U.array) <= 1e-10 * global_max(U.array)
     assert np.max(res.timeseries["kinetic"]) <= 1e-20
 
