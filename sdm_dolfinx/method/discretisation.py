@@ -356,19 +356,12 @@ class Discretisation:
         return {"dim_W": int(nW), "dim_H": int(nH), "N_g": int(self.num_constraints)}
 
     def initial_state(self, friction=None, contact="exact"):
-        """(U0, Vbar0): u0 (an equilibrium start's ``for_constraint(kind)``; ``"equilibrium"``: the static
-        solution of this discretisation with the run's ``friction`` and ``contact``, :mod:`.equilibrium`) and v0
-        in W, Dirichlet values imposed."""
+        """(U0, Vbar0): u0 (:func:`.equilibrium.initial_displacement`) and v0 in W, Dirichlet values imposed."""
         p = self.problem
         u0, v0 = fem.Function(self.W), fem.Function(self.W)
-        if not isinstance(p.u0, str):
-            u0.interpolate(getattr(p.u0, "for_constraint", lambda kind: p.u0)(self.constrain))
+        equilibrium.initial_displacement(self, u0, friction, contact)
         v0.interpolate(p.v0)
         U, V = compat.petsc_vec(u0).copy(), compat.petsc_vec(v0).copy()
-        if isinstance(p.u0, str):       # validated: equilibrium.EQUILIBRIUM
-            Us = equilibrium.static_displacement(self, friction, contact)
-            U.array[:] = Us.array_r         # into the ghosted vector of W (owned entries: the same layout)
-            Us.destroy()
         problem_data.initial_finite(p, U, V, self.comm)
         if self.ddofs.size:
             U.array[self.ddofs] = self.g.x.array[self.ddofs]

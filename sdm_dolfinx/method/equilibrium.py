@@ -60,6 +60,20 @@ class StaticStartError(DiscretisationError):
     """``u0 = "equilibrium"`` where the static problem has no (unique) solution: one line, exit 2."""
 
 
+def initial_displacement(d, u0, friction=None, contact="exact"):
+    """Set the Function ``u0`` of W^h to the Problem's u0 for the Discretisation ``d``: interpolated (a
+    callable, a Function; a built-in equilibrium start's ``for_constraint(kind)`` for the run's kind), or
+    ``"equilibrium"``: :func:`static_displacement` with the run's ``friction`` and ``contact``. Collective."""
+    p = d.problem
+    if not isinstance(p.u0, str):          # validated: a string is EQUILIBRIUM
+        u0.interpolate(getattr(p.u0, "for_constraint", lambda kind: p.u0)(d.constrain))
+        return
+    Us = static_displacement(d, friction, contact)
+    u0.x.array[:len(Us.array_r)] = Us.array_r          # the owned entries: the same layout
+    u0.x.scatter_forward()
+    Us.destroy()
+
+
 def _rigid_modes(d):
     """[(name, vector of W)] of the rigid motions of the problem's unknown: translations and rotations
     (about the mesh's centre) of a vector u of the mesh's dimension, the translations of another vector,
@@ -103,6 +117,17 @@ def _kernel(d, modes):
             r.destroy()
     y.destroy()
     return out
+
+
+def _kernel_basis(d, nloc):
+    """(R: the rigid motions in A's kernel as unit columns, owned rows; their names)."""
+    modes = _kernel(d, _rigid_modes(d))
+    R = np.column_stack([r.array for _, r in modes]) if modes else np.zeros((nloc, 0))
+    for _, r in modes:
+        r.destroy()
+    if R.shape[1]:
+        R = R / np.sqrt(d.comm.allreduce(np.sum(R * R, axis=0), op=MPI.SUM))
+    return R, [n for n, _ in modes]
 
 
 def _free_motions(R, fixed, comm):
@@ -202,13 +227,7 @@ def static_displacement(d, friction=None, contact="exact"):
     load = max(comm.allreduce(float(np.max(np.abs(L.array), initial=0.0)), op=MPI.MAX), np.finfo(float).tiny)
     x = p.mesh.geometry.x
     size = max(comm.allreduce(float(np.ptp(x, axis=0).max()) if len(x) else 0.0, op=MPI.MAX), 1.0)
-    modes = _kernel(d, _rigid_modes(d))
-    names = [n for n, _ in modes]
-    R = np.column_stack([r.array for _, r in modes]) if modes else np.zeros((nloc, 0))
-    for _, r in modes:
-        r.destroy()
-    if R.shape[1]:
-        R = R / np.sqrt(comm.allreduce(np.sum(R * R, axis=0), op=MPI.SUM))
+    R, names = _kernel_basis(d, nloc)
     tdofs = _tangential(d) if law != "none" else np.zeros((len(d.cdofs), 0), dtype=np.int64)
     gap0 = -d.lb                                         # U = 0: the reference configuration's gap
     low = comm.allreduce(float(np.min(gap0, initial=np.inf)), op=MPI.MIN)
@@ -228,23 +247,7 @@ def static_displacement(d, friction=None, contact="exact"):
             b.array[tdofs[slip].reshape(-1)] -= (bound[slip, None] * sdir[slip]).reshape(-1)
         fixed = np.zeros(nloc, dtype=bool)
         fixed[dofs] = True
-        pins = np.zeros(0, dtype=np.int64)
-        coef = _free_motions(R, fixed, comm) if R.shape[1] else np.zeros((0, 0))
-        N = R @ coef if coef.size else np.zeros((nloc, 0))
-        if N.shape[1]:
-            work = comm.allreduce(N.T @ b.array, op=MPI.SUM)
-            bad = np.flatnonzero(np.abs(work) > RTOL * load * np.sqrt(comm.allreduce(nloc, op=MPI.SUM)))
-            if bad.size:
-                j = bad[np.argmax(np.abs(work[bad]))]
-                name = names[int(np.argmax(np.abs(coef[:, j])))]
-                held = ("the active contact, friction and Dirichlet data do not fix" if law != "none"
-                        else "neither the active contact (frictionless) nor Dirichlet data fix")
-                raise StaticStartError(
-                    f"{who}: no static equilibrium: {held} {name}, and the load works along it (the body would "
-                    f"{'lift off or slide' if law == 'none' else 'lift off or slip'}: {d.num_constraints} "
-                    f"constrained, {comm.allreduce(int(active.sum()), op=MPI.SUM)} in contact); hold it "
-                    f"({'friction, ' if law == 'none' else ''}Dirichlet data) or start from rest")
-            pins = _pins(N, fixed, comm)
+        N, pins = _free_or_refuse(d, R, names, fixed, b, law, active, who, load)
         # 3-D: Newton on the slip direction, -bound u_t / |u_t| ~ -bound s - bound / |u_t| (I - s s^T) u_t
         blocks = [(tdofs[i], bound[i] / ulen[i] * (np.eye(nt) - np.outer(sdir[i], sdir[i])))
                   for i in np.flatnonzero(slip & (ulen > 0))] if nt > 1 else []
@@ -260,18 +263,8 @@ def static_displacement(d, friction=None, contact="exact"):
             raise StaticStartError(f"{who}: the static problem is singular (A is not invertible on the free dofs, "
                                    f"beyond the rigid motions; KSP reason {reason}, residual {resid:.2e} of the load "
                                    f"{load:.2e}): no unique static solution; start from a u0 of your own")
-        if N.shape[1]:                  # no rigid displacement along the free motions: (M N)^T U = 0
-            MN = []
-            for j in range(N.shape[1]):
-                nj, mj = U.duplicate(), U.duplicate()
-                nj.array[:] = N[:, j]
-                d.mass_mult(nj, mj)
-                MN.append(mj.array.copy())
-                nj.destroy(), mj.destroy()
-            MN = np.column_stack(MN)
-            G = comm.allreduce(MN.T @ N, op=MPI.SUM)
-            c = np.linalg.solve(G, comm.allreduce(MN.T @ U.array, op=MPI.SUM))
-            U.array[:] -= N @ c
+        if N.shape[1]:
+            _no_rigid_displacement(d, U, N)
         d.A.mult(U, r)
         r.axpy(-1.0, L)                 # the obstacle's reactions: normal, and tangential (friction)
         b.destroy()
@@ -291,6 +284,44 @@ def static_displacement(d, friction=None, contact="exact"):
         raise StaticStartError(f"{who}: the static contact problem found no active set in {MAX_ITER} changes")
     r.destroy(), L.destroy()
     return U
+
+
+def _free_or_refuse(d, R, names, fixed, b, law, active, who, load):
+    """(the free rigid motions N: owned rows x m, the dofs to pin to remove them) for the ``fixed`` dofs;
+    StaticStartError when the load ``b`` works along one of them (no static solution)."""
+    comm, nloc = d.comm, len(fixed)
+    coef = _free_motions(R, fixed, comm) if R.shape[1] else np.zeros((0, 0))
+    if not coef.size:
+        return np.zeros((nloc, 0)), np.zeros(0, dtype=np.int64)
+    N = R @ coef
+    work = comm.allreduce(N.T @ b.array, op=MPI.SUM)
+    bad = np.flatnonzero(np.abs(work) > RTOL * load * np.sqrt(comm.allreduce(nloc, op=MPI.SUM)))
+    if bad.size:
+        j = bad[np.argmax(np.abs(work[bad]))]
+        name = names[int(np.argmax(np.abs(coef[:, j])))]
+        held = ("the active contact, friction and Dirichlet data do not fix" if law != "none"
+                else "neither the active contact (frictionless) nor Dirichlet data fix")
+        raise StaticStartError(
+            f"{who}: no static equilibrium: {held} {name}, and the load works along it (the body would "
+            f"{'lift off or slide' if law == 'none' else 'lift off or slip'}: {d.num_constraints} "
+            f"constrained, {comm.allreduce(int(active.sum()), op=MPI.SUM)} in contact); hold it "
+            f"({'friction, ' if law == 'none' else ''}Dirichlet data) or start from rest")
+    return N, _pins(N, fixed, comm)
+
+
+def _no_rigid_displacement(d, U, N):
+    """U -= N c with (M N)^T U = 0 after: no rigid displacement along the free motions N (the centre
+    of mass does not move along them)."""
+    comm, MN = d.comm, []
+    for j in range(N.shape[1]):
+        nj, mj = U.duplicate(), U.duplicate()
+        nj.array[:] = N[:, j]
+        d.mass_mult(nj, mj)
+        MN.append(mj.array.copy())
+        nj.destroy(), mj.destroy()
+    MN = np.column_stack(MN)
+    c = np.linalg.solve(comm.allreduce(MN.T @ N, op=MPI.SUM), comm.allreduce(MN.T @ U.array, op=MPI.SUM))
+    U.array[:] -= N @ c
 
 
 def _stick_or_slip(d, friction, r, u, tdofs, active, stick, sdir, bound, ulen, tol):
