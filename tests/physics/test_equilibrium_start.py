@@ -14,6 +14,7 @@ the load's normal part at every step, up to the solves' round-off. Checked on
   unstressed start rattles by more than 1e-4 mm), contact force m g cos theta, friction force
   m g sin theta;
 * the membrane (a scalar problem with Dirichlet data): the static obstacle problem, at rest;
+* a clamped block under a time-dependent load (the equilibrium under L(0)); Tresca friction;
 * the refusals, one line each, where the static problem has no solution;
 * ``u0`` as a dolfinx Function (interpolated into W^h).
 1 and 2 ranks.
@@ -25,7 +26,7 @@ from mpi4py import MPI
 
 import numpy as np
 import pytest
-from dolfinx import fem
+from dolfinx import fem, mesh as dmesh
 
 from sdm_dolfinx import compat, simulate
 from sdm_dolfinx.cli import main as cli_main
@@ -186,3 +187,51 @@ def test_u0_may_be_a_dolfinx_function_and_no_other_string():
     assert abs(res.timeseries["u_probe"][0] - 0.01) <= 1e-15
     with pytest.raises(ProblemInputError, match="u0 must be x -> values, a dolfinx Function or 'equilibrium'"):
         dataclasses.replace(p, u0="equilibrum")
+
+
+def test_dirichlet_data_and_a_time_dependent_load():
+    """The incline file's block at theta = 0 with its top face clamped (u = 0) and lifted 0.5 mm
+    above the floor (lower_bound - 0.5: no contact at rest), under a load (1 + 3 t) rho g that
+    grows in time: the static solution is the clamped block hanging under L(0) = rho g, A U = L at
+    every dof but the clamped ones (1e-10 of the load), U = 0 on the top face, no constrained node
+    touching (every gap > 0.4 mm); a load at t = 0 three times smaller than at t = 1 is what it is
+    solved for (U scales with the load: the same U as with the constant load rho g, 1e-12)."""
+
+    def clamped(time_dependent):
+        p = incline(theta=0.0, n=4)
+        fdim = p.mesh.topology.dim - 1
+        p.dirichlet_facets = lambda m: dmesh.locate_entities_boundary(m, fdim, lambda x: np.isclose(x[1], 10.0))
+        p.dirichlet_value = lambda x: np.zeros((2, x.shape[1]))
+        p.lower_bound = lambda x: -x[1] - 0.5
+        if time_dependent:
+            t = fem.Constant(p.mesh, 0.0)
+            load = p.l
+            p.time, p.l = t, lambda w: (1.0 + 3.0 * t) * load(w)
+        return p
+
+    d = Discretisation(clamped(True), "P2/P1")
+    U, _ = d.initial_state()
+    r = d.A.createVecLeft()
+    d.A.mult(U, r)
+    r.axpy(-1.0, d.L)
+    free = np.setdiff1d(np.arange(len(U.array)), d.ddofs)
+    assert global_max(r.array[free]) <= 1e-10 * global_max(d.L.array)
+    assert global_max(U.array[d.ddofs]) == 0.0 and global_max(U.array) > 1e-5
+    assert COMM.allreduce(float(np.min(U.array[d.cdofs] - d.lb, initial=np.inf)), op=MPI.MIN) > 0.4
+    U_const, _ = Discretisation(clamped(False), "P2/P1").initial_state()
+    assert global_max(U.array - U_const.array) <= 1e-12 * global_max(U.array)
+
+
+def test_tresca_friction_holds_the_block_on_the_incline():
+    """Tresca (a threshold s = 0.2 N/mm^2 per unit length of the bottom: its capacity s L = 2 N per
+    mm exceeds the tangential load m g sin 30 = 0.49 N per mm) on the 2-D incline: the equilibrium
+    start stays at rest (10 steps: displacement change <= 1e-9 mm, momentum 0, friction force
+    m g sin theta within :func:`slack`)."""
+    dt, T, theta, m = 1e-4, 1e-3, np.radians(30.0), 1e-6 * 100.0
+    res = simulate(incline(n=4), pair="P2/P1", dt=dt, T=T, friction="tresca",
+                   friction_options={"tresca_threshold": 0.2})
+    U0, _ = res.discretisation.initial_state(make_friction("tresca", threshold=0.2))
+    assert global_max(res.U.array - U0.array) <= 1e-9
+    ts = res.timeseries
+    assert np.max(np.abs(np.abs(ts["tangential_force"][1:]) - m * G * np.sin(theta))) <= slack(dt, m, 1e-3)
+    assert np.max(np.abs(ts["momentum_x"])) <= 1e-12 * m * G * T
