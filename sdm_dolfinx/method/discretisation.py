@@ -14,7 +14,7 @@ from dolfinx import fem, mesh as dmesh
 from sdm_dolfinx import compat
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.method.frozen import FrozenData
-from sdm_dolfinx.method import dirichlet as _parts, masses, problem_data, quadrature
+from sdm_dolfinx.method import dirichlet as _parts, equilibrium, masses, problem_data, quadrature
 from sdm_dolfinx.method.pairs import MASS_TREATMENTS, get_pair
 
 #: an initial displacement below the bound by more than this times max(1, max |bound|) at a
@@ -339,11 +339,11 @@ class Discretisation:
         nH = (nW if self.H is None else self.H.dofmap.index_map.size_global * self.H.dofmap.index_map_bs)
         return {"dim_W": int(nW), "dim_H": int(nH), "N_g": int(self.num_constraints)}
 
-    def initial_state(self):
-        """(U0, Vbar0): u0 (an equilibrium start's ``for_constraint(kind)``) and v0 in W, Dirichlet values imposed."""
+    def initial_state(self, friction=None, contact="exact"):
+        """(U0, Vbar0): u0 (:func:`.equilibrium.initial_displacement`) and v0 in W, Dirichlet values imposed."""
         p = self.problem
         u0, v0 = fem.Function(self.W), fem.Function(self.W)
-        u0.interpolate(getattr(p.u0, "for_constraint", lambda kind: p.u0)(self.constrain))
+        equilibrium.initial_displacement(self, u0, friction, contact)
         v0.interpolate(p.v0)
         U, V = compat.petsc_vec(u0).copy(), compat.petsc_vec(v0).copy()
         problem_data.initial_finite(p, U, V, self.comm)

@@ -47,6 +47,9 @@ PointFunction = Callable[[npt.NDArray[np.float64]], npt.ArrayLike]
 #: e_x^T M Vbar, the momentum along ``momentum_component``, 1/2 U^T A U
 EXTRA_COLUMNS = ("contact_force", "momentum_x", "momentum_y", "elastic")
 
+#: ``Problem.u0`` asking for the equilibrium start (:mod:`sdm_dolfinx.method.equilibrium`)
+EQUILIBRIUM = "equilibrium"
+
 
 @dataclass
 class Problem:
@@ -59,7 +62,11 @@ class Problem:
         a: ``a(u, w)`` -> UFL bilinear form (the operator A).
         l: ``l(w)`` -> UFL linear form (the load L, gravity included).
         rho: density: the mass forms are ``rho * u.w dx``.
-        u0: initial displacement, a callable ``x -> values`` for ``Function.interpolate``.
+        u0: initial displacement: a callable ``x -> values`` or a ``fem.Function`` on the mesh (any
+            element: interpolated into W^h), as ``Function.interpolate`` takes them; or
+            :data:`EQUILIBRIUM` (``"equilibrium"``): the static solution of the run's own
+            discretisation under L(0) with the constraint (its kind), Dirichlet data and the run's
+            friction sticking (:mod:`sdm_dolfinx.method.equilibrium`).
         v0: initial velocity, same form.
         constraint_vertices: ``mesh -> local vertex indices`` where K^h acts (eq. (13)).
         lower_bound: ``x (3, n) -> (n,)`` the bound on the constrained displacement
@@ -111,7 +118,7 @@ class Problem:
     shape: tuple[int, ...]
     a: Callable[[UFL, UFL], UFL]
     l: Callable[[UFL], UFL]
-    u0: PointFunction
+    u0: Union[PointFunction, str]
     v0: PointFunction
     constraint_vertices: MeshEntities
     lower_bound: PointFunction
@@ -156,6 +163,9 @@ class Problem:
         elif comp not in (None, 0):
             raise ProblemInputError(f"problem {self.name!r}: a scalar problem has no component {comp!r}; "
                                     f"leave constraint_component at None")
+        if isinstance(self.u0, str) and self.u0 != EQUILIBRIUM:
+            raise ProblemInputError(f"problem {self.name!r}: u0 must be x -> values, a dolfinx Function or "
+                                    f"{EQUILIBRIUM!r} (the static equilibrium), not {self.u0!r}")
         unknown = [c for c in self.extra_columns if c not in EXTRA_COLUMNS]
         if unknown:
             raise ProblemInputError(f"problem {self.name!r}: unknown extra_columns {', '.join(map(repr, unknown))}; "
@@ -186,6 +196,8 @@ class Problem:
         if self.source:
             d["source"] = self.source
             d["source_sha256"] = self.source_sha256
+        if isinstance(self.u0, str):
+            d["start"] = "equilibrium (static solution of the run's discretisation under L(0))"
         if self.time is not None:
             d["load"] = "time-dependent (reassembled every step at the scheme's load time)"
         if self.dirichlet_parts:

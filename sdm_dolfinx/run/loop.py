@@ -131,7 +131,7 @@ class _Loop:
             self.integ.linear_reason = kept[1]
         self.nsteps = num_steps(o["T"], dt)
         self.setup_time = time.perf_counter() - wall0
-        U, V = d.initial_state()
+        U, V = d.initial_state(self.integ.friction, self.integ.contact)
         self.U, self.V = U, self.integ.initial_velocity(V)
         self.cprobe = ConstraintProbe(d, problem.probe)
         probe = PointProbe(d.W, problem.probe, problem.constraint_component)

@@ -38,6 +38,7 @@ NOT_DEMOS = {
     "bar_problem.py": "a problem file: custom_problem.py, test_api.py and the README's quick start run it",
     "paraview_membrane.py": "a pvpython script: tests/integration/test_paraview.py runs it",
     "pushed_block_problem.py": "a problem file: tests/physics/test_prescribed_motion.py runs it",
+    "incline_problem.py": "a problem file (u0 = 'equilibrium'): tests/physics/test_equilibrium_start.py runs it",
 }
 #: measured on the 2-core machine with CI=1: membrane 10 s, disc 12 s, ball 5-13 s, friction 7 s, bar 6 s
 SLOW = {"membrane.py", "disc.py", "ball.py"}

@@ -1,0 +1,354 @@
+"""The equilibrium start of any Problem: ``u0 = "equilibrium"``, the static Signorini solution in W^h.
+
+The static problem of the run's own discretisation, from its own matrices (so in its W^h
+element, with its constraint kind, quadrature and Dirichlet data): find U with
+
+    A U = L + r,   U_c >= g and r_c >= 0 and r_c (U_c - g) = 0 at the constrained dofs,
+    U = u_D at the Dirichlet dofs,   r = 0 elsewhere,
+
+L the load at t = 0 (a time-dependent load: its value at t = 0). It is solved by an active-set
+loop of linear solves (MUMPS on A with the active and Dirichlet dofs eliminated): start with
+the constrained dofs touching in the reference configuration (the lowest ones if none does),
+release an active dof whose reaction pulls (r_c < 0), add an inactive one that penetrates,
+until neither happens. Started there with zero velocity a run stays there: with
+U^n = U_s the midpoint scheme's step (and backward Euler's) is solved by U^{n+1} = U_s with the
+multipliers r_c, so the contact force is the load's normal part at every step.
+
+With friction (the run's ``friction``, Coulomb or Tresca) the static problem is the first load
+step from the unstressed body: an active node sticks (U_t = 0) while its tangential reaction lies
+in the cone (Coulomb |r_t| <= mu r_c, Tresca |r_t| <= s m_i), else it slips with the reaction
+-bound U_t / |U_t| on the cone's edge; the stick and slip sets, the slip directions (3-D: a Newton
+step on -bound U_t / |U_t|) and Coulomb's bound mu r_c are updated in the same loop until they
+are unchanged (to the relative tolerance :data:`RTOL`). Started there, the run's first slip
+d = X_t - U_t is 0 with |lam_T| <= bound: the body stays at rest (a sticking block on an incline
+whose contact edge slips).
+
+A rigid motion that A does not resist (the translations and rotations for a vector u, the
+constant for a scalar u, where ``A r = 0``) and that neither the active contact, the sticking
+dofs nor the Dirichlet data fix is a free motion of the body: the static problem then has a
+solution only if the load does no work along it (``r . L = 0``); it is refused in one line
+otherwise (a frictionless body on an incline, a body the load lifts off the obstacle, a disc
+touching at one vertex under a load with a moment about it), and when it holds the solution is
+taken with no rigid displacement along the free motions (``R^T M U = 0``: the centre of mass
+does not move along them). A matrix singular otherwise (a mechanism that is no rigid motion)
+is refused too.
+"""
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import numpy as np
+from dolfinx import fem
+
+from sdm_dolfinx import compat
+from sdm_dolfinx.method.errors import DiscretisationError
+from sdm_dolfinx.problems.base import EQUILIBRIUM as EQUILIBRIUM  # noqa: F401  (the value of u0 asking for it)
+from sdm_dolfinx.problems.base import label
+#: the most active-set changes of the loop
+MAX_ITER = 100
+#: a reaction below -RTOL times the load's size pulls (released); a gap below -RTOL times the mesh's
+#: size penetrates (added); the cone and the free motions' load are checked at this relative size too
+RTOL = 1e-10
+#: a rigid motion r is in A's kernel when |A r|_inf <= KERNEL_TOL |A|_inf |r|_inf
+KERNEL_TOL = 1e-9
+#: a rigid motion is free when the unit-norm combination's squared norm on the fixed dofs is below this
+FREE_TOL = 1e-12
+#: the free dofs' residual |A U - L|_inf must be below this times |L|_inf (else A is singular there)
+RESIDUAL_TOL = 1e-8
+
+
+class StaticStartError(DiscretisationError):
+    """``u0 = "equilibrium"`` where the static problem has no (unique) solution: one line, exit 2."""
+
+
+def initial_displacement(d, u0, friction=None, contact="exact"):
+    """Set the Function ``u0`` of W^h to the Problem's u0 for the Discretisation ``d``: interpolated (a
+    callable, a Function; a built-in equilibrium start's ``for_constraint(kind)`` for the run's kind), or
+    ``"equilibrium"``: :func:`static_displacement` with the run's ``friction`` and ``contact``. Collective."""
+    p = d.problem
+    if not isinstance(p.u0, str):          # validated: a string is EQUILIBRIUM
+        u0.interpolate(getattr(p.u0, "for_constraint", lambda kind: p.u0)(d.constrain))
+        return
+    Us = static_displacement(d, friction, contact)
+    u0.x.array[:len(Us.array_r)] = Us.array_r          # the owned entries: the same layout
+    u0.x.scatter_forward()
+    Us.destroy()
+
+
+def _rigid_modes(d):
+    """[(name, vector of W)] of the rigid motions of the problem's unknown: translations and rotations
+    (about the mesh's centre) of a vector u of the mesh's dimension, the translations of another vector,
+    the constant of a scalar u."""
+    p, msh = d.problem, d.problem.mesh
+    shape = tuple(p.shape)
+    if not shape:
+        return [("the constant", d.rigid_vector(0))]
+    n, axes = shape[0], "xyz"
+    modes = [(f"the translation along {axes[c] if c < 3 else c}", d.rigid_vector(c)) for c in range(n)]
+    gdim = msh.geometry.dim
+    if n != gdim or gdim < 2:
+        return modes
+    comm = msh.comm
+    x = msh.geometry.x[:, :gdim]
+    lo, hi = x.min(axis=0) if len(x) else np.full(gdim, np.inf), x.max(axis=0) if len(x) else np.full(gdim, -np.inf)
+    comm.Allreduce(MPI.IN_PLACE, lo, op=MPI.MIN)
+    comm.Allreduce(MPI.IN_PLACE, hi, op=MPI.MAX)
+    c = 0.5 * (lo + hi)
+    planes = [(0, 1, "z")] if gdim == 2 else [(1, 2, "x"), (2, 0, "y"), (0, 1, "z")]
+    for i, j, about in planes:
+        def rotation(x, i=i, j=j):
+            v = np.zeros((gdim, x.shape[1]))
+            v[i], v[j] = -(x[j] - c[j]), x[i] - c[i]
+            return v
+        f = fem.Function(d.W)
+        f.interpolate(rotation)
+        modes.append((f"the rotation about {about}", compat.petsc_vec(f).copy()))
+    return modes
+
+
+def _kernel(d, modes):
+    """The rigid motions A does not resist (A r = 0 to round-off): [(name, r)]."""
+    norm_a = d.A.norm(PETSc.NormType.INFINITY)
+    out, y = [], d.A.createVecLeft()
+    for name, r in modes:
+        d.A.mult(r, y)
+        if y.norm(PETSc.NormType.INFINITY) <= KERNEL_TOL * norm_a * r.norm(PETSc.NormType.INFINITY):
+            out.append((name, r))
+        else:
+            r.destroy()
+    y.destroy()
+    return out
+
+
+def _kernel_basis(d, nloc):
+    """(R: the rigid motions in A's kernel as unit columns, owned rows; their names)."""
+    modes = _kernel(d, _rigid_modes(d))
+    R = np.column_stack([r.array for _, r in modes]) if modes else np.zeros((nloc, 0))
+    for _, r in modes:
+        r.destroy()
+    if R.shape[1]:
+        R = R / np.sqrt(d.comm.allreduce(np.sum(R * R, axis=0), op=MPI.SUM))
+    return R, [n for n, _ in modes]
+
+
+def _free_motions(R, fixed, comm):
+    """The combinations of the columns of R (owned rows, unit columns) that vanish on the ``fixed`` rows:
+    (their coefficients, k x m)."""
+    Rf = R[fixed]
+    G = comm.allreduce(Rf.T @ Rf, op=MPI.SUM)
+    w, v = np.linalg.eigh(G)
+    return v[:, w < FREE_TOL]
+
+
+def _pins(N, fixed, comm):
+    """Owned rows (local indices, on their owner) where pinning U = 0 removes the free motions N (owned
+    rows x m): Gaussian elimination with complete pivoting, the pivot sought over every rank."""
+    N = N.copy()
+    N[fixed] = 0.0
+    rank, pins = comm.rank, []
+    m = N.shape[1]
+    cols = list(range(m))
+    for _ in range(m):
+        sub = np.abs(N[:, cols]) if len(N) else np.zeros((0, len(cols)))
+        k = np.unravel_index(np.argmax(sub), sub.shape) if sub.size else (-1, -1)
+        best, owner = comm.allreduce((float(sub[k]) if sub.size else -1.0, rank), op=MPI.MAXLOC)
+        row = comm.bcast(N[k[0]].copy() if rank == owner else None, root=owner)
+        col = cols[int(comm.bcast(k[1] if rank == owner else None, root=owner))]
+        if rank == owner:
+            pins.append(int(k[0]))
+        cols.remove(col)
+        if cols:
+            N[:, cols] -= np.outer(N[:, col] / row[col], row[cols])
+        N[:, col] = 0.0
+    return np.array(pins, dtype=np.int64)
+
+
+def _solve_fixed(A, L, dofs, values, comm, blocks=()):
+    """(A + D) u = L with u = ``values`` at the owned local indices ``dofs``: symmetric elimination, MUMPS;
+    D: the ``blocks`` [(owned local indices, square matrix)] added to A. Returns (u, KSP converged reason)."""
+    r0 = A.getOwnershipRange()[0]
+    rows = (r0 + np.asarray(dofs, dtype=np.int64)).astype(PETSc.IntType)
+    x0, b, u = A.createVecRight(), L.copy(), A.createVecRight()
+    x0.setValues(rows, np.asarray(values, dtype=PETSc.ScalarType))
+    x0.assemble()
+    K = A.copy()
+    for idx, block in blocks:
+        g = (r0 + np.asarray(idx, dtype=np.int64)).astype(PETSc.IntType)
+        K.setValues(g, g, np.asarray(block, dtype=PETSc.ScalarType), addv=PETSc.InsertMode.ADD_VALUES)
+    K.assemble()
+    K.zeroRowsColumns(rows, 1.0, x0, b)
+    ksp = PETSc.KSP().create(comm)
+    ksp.setOperators(K)
+    ksp.setType("preonly")
+    ksp.getPC().setType("lu")
+    ksp.getPC().setFactorSolverType("mumps")
+    ksp.solve(b, u)
+    reason = ksp.getConvergedReason()
+    ksp.destroy(), K.destroy(), b.destroy(), x0.destroy()
+    return u, reason
+
+
+def _tangential(d):
+    """The tangential dofs paired with ``d.cdofs`` (the pairing of :func:`sdm_dolfinx.contact.friction.
+    contact_dofs`: the other components of the same node), m x (gdim - 1)."""
+    comp, n = d.problem.constraint_component, d.problem.shape[0]
+    return np.column_stack([d.cdofs - comp + c for c in range(n) if c != comp]).astype(np.int64)
+
+
+def _load_at_zero(d):
+    """L at t = 0 (a new vector; a time-dependent load's ``time`` is restored)."""
+    p = d.problem
+    if p.time is None:
+        return d.L.copy()
+    t = float(p.time.value)
+    p.time.value = 0.0
+    L = compat.assemble_vector(d.L_form)
+    p.time.value = t
+    return L
+
+
+def static_displacement(d, friction=None, contact="exact"):
+    """The static displacement U_s (a PETSc vector of W^h) of the Discretisation ``d`` (the module's
+    docstring); ``friction`` (an object with ``law``, ``mu``, ``threshold``, or None) holds the active
+    dofs tangentially (stick, or slip at the cone's edge). Collective.
+
+    Raises:
+        StaticStartError: a contact treatment other than "exact" (its equilibrium penetrates), a free
+            rigid motion along which the load works (a body that would lift off, slide or slip as a
+            whole), a matrix singular otherwise, no active set in :data:`MAX_ITER` changes.
+    """
+    p, comm = d.problem, d.comm
+    who = f"{label(p)}: u0 = 'equilibrium'"
+    if contact != "exact":
+        raise StaticStartError(f"{who} is the exact Signorini equilibrium, and contact {contact!r} penetrates the "
+                               f"obstacle at rest: start from a u0 of your own (or contact 'exact')")
+    law = getattr(friction, "law", "none") if friction is not None else "none"
+    L = _load_at_zero(d)
+    nloc = d.A.getLocalSize()[0]
+    load = max(comm.allreduce(float(np.max(np.abs(L.array), initial=0.0)), op=MPI.MAX), np.finfo(float).tiny)
+    x = p.mesh.geometry.x
+    size = max(comm.allreduce(float(np.ptp(x, axis=0).max()) if len(x) else 0.0, op=MPI.MAX), 1.0)
+    R, names = _kernel_basis(d, nloc)
+    tdofs = _tangential(d) if law != "none" else np.zeros((len(d.cdofs), 0), dtype=np.int64)
+    gap0 = -d.lb                                         # U = 0: the reference configuration's gap
+    low = comm.allreduce(float(np.min(gap0, initial=np.inf)), op=MPI.MIN)
+    active = gap0 <= (max(low, 0.0) + RTOL * size)
+    gvals = d.g.x.array[d.ddofs]
+    m, nt = tdofs.shape
+    stick = np.ones(m, dtype=bool)                  # with friction: an active dof sticks, or slips along sdir
+    sdir, bound, ulen = np.zeros((m, nt)), np.zeros(m), np.zeros(m)
+    r = d.A.createVecLeft()
+    for _ in range(MAX_ITER):
+        slip = active & ~stick
+        stuck = tdofs[active & stick].reshape(-1)
+        dofs = np.concatenate([d.ddofs, d.cdofs[active], stuck]).astype(np.int64)
+        values = np.concatenate([gvals, d.lb[active], np.zeros(len(stuck))])
+        b = L.copy()                                # the load, and the friction force -bound s where it slips
+        if slip.any():
+            b.array[tdofs[slip].reshape(-1)] -= (bound[slip, None] * sdir[slip]).reshape(-1)
+        fixed = np.zeros(nloc, dtype=bool)
+        fixed[dofs] = True
+        N, pins = _free_or_refuse(d, R, names, fixed, b, law, active, who, load)
+        # 3-D: Newton on the slip direction, -bound u_t / |u_t| ~ -bound s - bound / |u_t| (I - s s^T) u_t
+        blocks = [(tdofs[i], bound[i] / ulen[i] * (np.eye(nt) - np.outer(sdir[i], sdir[i])))
+                  for i in np.flatnonzero(slip & (ulen > 0))] if nt > 1 else []
+        U, reason = _solve_fixed(d.A, b, np.r_[dofs, pins], np.r_[values, np.zeros(len(pins))], comm, blocks)
+        d.A.mult(U, r)
+        r.axpy(-1.0, b)
+        for idx, block in blocks:
+            r.array[idx] += block @ U.array[idx]
+        free = ~fixed
+        free[pins] = False
+        resid = comm.allreduce(float(np.max(np.abs(r.array[free]), initial=0.0)), op=MPI.MAX)
+        if reason <= 0 or not np.isfinite(resid) or resid > RESIDUAL_TOL * load:
+            raise StaticStartError(f"{who}: the static problem is singular (A is not invertible on the free dofs, "
+                                   f"beyond the rigid motions; KSP reason {reason}, residual {resid:.2e} of the load "
+                                   f"{load:.2e}): no unique static solution; start from a u0 of your own")
+        if N.shape[1]:
+            _no_rigid_displacement(d, U, N)
+        d.A.mult(U, r)
+        r.axpy(-1.0, L)                 # the obstacle's reactions: normal, and tangential (friction)
+        b.destroy()
+        reaction, gap = r.array[d.cdofs], U.array[d.cdofs] - d.lb
+        release = active & (reaction < -RTOL * load)
+        add = ~active & (gap < -RTOL * size)
+        changes = int(release.sum() + add.sum())
+        if law != "none":
+            changes += _stick_or_slip(d, friction, r.array, U.array, tdofs, active & ~release, stick, sdir, bound,
+                                      ulen, RTOL * load)
+        if not comm.allreduce(changes, op=MPI.SUM):
+            break
+        active = (active & ~release) | add
+        stick[add] = True
+        U.destroy()
+    else:
+        raise StaticStartError(f"{who}: the static contact problem found no active set in {MAX_ITER} changes")
+    r.destroy(), L.destroy()
+    return U
+
+
+def _free_or_refuse(d, R, names, fixed, b, law, active, who, load):
+    """(the free rigid motions N: owned rows x m, the dofs to pin to remove them) for the ``fixed`` dofs;
+    StaticStartError when the load ``b`` works along one of them (no static solution)."""
+    comm, nloc = d.comm, len(fixed)
+    coef = _free_motions(R, fixed, comm) if R.shape[1] else np.zeros((0, 0))
+    if not coef.size:
+        return np.zeros((nloc, 0)), np.zeros(0, dtype=np.int64)
+    N = R @ coef
+    work = comm.allreduce(N.T @ b.array, op=MPI.SUM)
+    bad = np.flatnonzero(np.abs(work) > RTOL * load * np.sqrt(comm.allreduce(nloc, op=MPI.SUM)))
+    if bad.size:
+        j = bad[np.argmax(np.abs(work[bad]))]
+        name = names[int(np.argmax(np.abs(coef[:, j])))]
+        held = ("the active contact, friction and Dirichlet data do not fix" if law != "none"
+                else "neither the active contact (frictionless) nor Dirichlet data fix")
+        raise StaticStartError(
+            f"{who}: no static equilibrium: {held} {name}, and the load works along it (the body would "
+            f"{'lift off or slide' if law == 'none' else 'lift off or slip'}: {d.num_constraints} "
+            f"constrained, {comm.allreduce(int(active.sum()), op=MPI.SUM)} in contact); hold it "
+            f"({'friction, ' if law == 'none' else ''}Dirichlet data) or start from rest")
+    return N, _pins(N, fixed, comm)
+
+
+def _no_rigid_displacement(d, U, N):
+    """U -= N c with (M N)^T U = 0 after: no rigid displacement along the free motions N (the centre
+    of mass does not move along them)."""
+    comm, MN = d.comm, []
+    for j in range(N.shape[1]):
+        nj, mj = U.duplicate(), U.duplicate()
+        nj.array[:] = N[:, j]
+        d.mass_mult(nj, mj)
+        MN.append(mj.array.copy())
+        nj.destroy(), mj.destroy()
+    MN = np.column_stack(MN)
+    c = np.linalg.solve(comm.allreduce(MN.T @ N, op=MPI.SUM), comm.allreduce(MN.T @ U.array, op=MPI.SUM))
+    U.array[:] -= N @ c
+
+
+def _stick_or_slip(d, friction, r, u, tdofs, active, stick, sdir, bound, ulen, tol):
+    """One update of the stick and slip sets (in place) after a static solve; the number of changes.
+
+    A sticking dof whose tangential reaction leaves the cone (|r_t| > bound, Coulomb mu r_n, Tresca
+    s m_i) slips from now on, along -r_t / |r_t| with the reaction -bound s; a slipping dof whose
+    displacement u_t went against its slip direction (u_t . s <= 0) sticks again; a slipping dof takes
+    the direction of u_t (3-D) and the bound of the new normal reaction (Coulomb): a change of either
+    beyond ``tol`` counts, so the loop ends at a fixed point."""
+    lam_n, lam_t, ut = r[d.cdofs], r[tdofs], u[tdofs]
+    new = (friction.mu * np.maximum(lam_n, 0.0) if friction.law == "coulomb"
+           else friction.threshold * d.cmeasure)
+    norm_t = np.linalg.norm(lam_t, axis=1)
+    slipping = active & ~stick
+    to_slip = active & stick & (norm_t > new + tol)
+    dot = np.sum(ut * sdir, axis=1)
+    to_stick = slipping & (dot <= 0.0)
+    keep = slipping & ~to_stick
+    norm_u = np.linalg.norm(ut, axis=1)
+    turn = np.zeros(len(stick))
+    if keep.any():
+        s_new = ut[keep] / norm_u[keep, None]
+        turn[keep] = np.linalg.norm(s_new - sdir[keep], axis=1) * new[keep]
+        sdir[keep], ulen[keep] = s_new, norm_u[keep]
+    moved = keep & ((np.abs(new - bound) > tol) | (turn > tol))
+    sdir[to_slip], ulen[to_slip | to_stick] = -lam_t[to_slip] / norm_t[to_slip, None], 0.0
+    stick[to_slip], stick[to_stick] = False, True
+    bound[:] = new
+    return int(to_slip.sum() + to_stick.sum() + moved.sum())
