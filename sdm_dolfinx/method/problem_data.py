@@ -34,9 +34,10 @@ def vertices(problem, comm):
     return verts.astype(np.int32).reshape(-1)
 
 
-def bound(problem, x, comm):
-    """``problem.lower_bound(x)`` at the points ``x`` (3, n): n finite numbers."""
-    lb = np.asarray(problem.lower_bound(x))
+def bound(problem, x, comm, t=0.0):
+    """``problem.lower_bound(x)`` (a moving bound: ``lower_bound(x, t)``) at the points ``x`` (3, n):
+    n finite numbers."""
+    lb = np.asarray(problem.bound(x, t))
     wrong = None
     if lb.shape != (x.shape[1],):
         wrong = (f"lower_bound returned an array of shape {lb.shape} for x of shape {x.shape}; it must return "
@@ -44,6 +45,8 @@ def bound(problem, x, comm):
     elif not np.all(np.isfinite(lb)):
         bad = ~np.isfinite(lb)
         wrong = f"lower_bound returned non-finite values ({lb[bad][0]}) at {int(np.sum(bad))} point(s)"
+        if problem.moving_bound:
+            wrong += f" at t = {t:.6g}"
     refuse(problem, comm, wrong)
     return lb.astype(PETSc.ScalarType)
 

@@ -61,7 +61,17 @@ class Problem:
         v0: initial velocity, same form.
         constraint_vertices: ``mesh -> local vertex indices`` where K^h acts (eq. (13)).
         lower_bound: ``x (3, n) -> (n,)`` the bound on the constrained displacement
-            component at vertices of coordinates x: u_c(a_i) >= lower_bound(a_i).
+            component at vertices of coordinates x: u_c(a_i) >= lower_bound(a_i); with
+            ``moving_bound`` it is ``(x, t) -> (n,)``, the bound at the time t.
+        moving_bound: the obstacle moves along the constrained component: ``lower_bound`` takes
+            ``(x, t)`` (a rising floor, a wall moving at V: ``lambda x, t: V * t - x[0]``). Each
+            step imposes the bound of the step, :meth:`Scheme.step_bound
+            <sdm_dolfinx.schemes.base.Scheme.step_bound>`: the midpoint scheme constrains
+            U^{n+1/2} >= (g(t_n) + g(t_{n+1})) / 2 (the mean of the bounds, which keeps a vertex
+            in sustained contact on the obstacle at every t_n, so that E - obstacle_work is
+            conserved: :mod:`sdm_dolfinx.schemes.midpoint`), backward Euler U^{n+1} >= g(t_{n+1});
+            the other schemes, the penalty and Nitsche treatments refuse it in one line. The time
+            series gets the columns ``obstacle_work`` and ``obstacle_probe``.
         constraint_component: component of u that is bounded, and that ``u_probe`` records:
             required for a vector u (an int in 0..gdim-1; the Problem refuses None), None (or 0)
             for a scalar u.
@@ -123,6 +133,7 @@ class Problem:
     source_sha256: Optional[str] = None
     time: Optional[Constant] = None
     stress: Optional[Callable[[UFL], UFL]] = None
+    moving_bound: bool = False
 
     def __post_init__(self) -> None:
         self.validate()
@@ -158,6 +169,9 @@ class Problem:
         if self.time is not None and (not hasattr(self.time, "value") or np.shape(self.time.value) != ()):
             raise ProblemInputError(f"problem {self.name!r}: time must be a scalar fem.Constant used by l(w) "
                                     f"(got {type(self.time).__name__})")
+        if not isinstance(self.moving_bound, (bool, np.bool_)):
+            raise ProblemInputError(f"problem {self.name!r}: moving_bound must be True (lower_bound takes (x, t)) or "
+                                    f"False (lower_bound takes x) (got {self.moving_bound!r})")
         rho = self.rho
         if isinstance(rho, bool) or not isinstance(rho, (int, float, np.integer, np.floating)) \
                 or not (np.isfinite(rho) and rho > 0):
@@ -179,7 +193,16 @@ class Problem:
             d["source_sha256"] = self.source_sha256
         if self.time is not None:
             d["load"] = "time-dependent (reassembled every step at the scheme's load time)"
+        if self.moving_bound:
+            d["bound"] = "moving: lower_bound(x, t) (each step imposes the scheme's step bound)"
         return d
+
+    def bound(self, x: npt.NDArray[np.float64], t: float = 0.0) -> npt.ArrayLike:
+        """The bound ``lower_bound`` at the points x (3, n) at the time t (a bound that does not
+        move, ``moving_bound`` False, is called as ``lower_bound(x)``: t is then not used)."""
+        if self.moving_bound:
+            return self.lower_bound(x, t)        # type: ignore[call-arg]
+        return self.lower_bound(x)
 
 
 class ProblemInputError(SdmError, ValueError):

@@ -6,6 +6,26 @@ midpoint, so U^{n+1} itself may dip below the bound: by O(dt) when U^0 is static
 mass's massless modes, by O(h) whatever dt when it is not (the midpoint rule's stability function
 is -1 at infinity: such a mode alternates, validation/rod_contact.py). The equation of (14) holds at
 t_{n+1/2}: a time-dependent load enters as L(t_{n+1/2}) (second order).
+
+A moving obstacle (``Problem.moving_bound``: u_c(a_i) >= g_i(t)) is imposed as
+U^{n+1/2}_i >= (g_i(t_n) + g_i(t_{n+1})) / 2, the mean of the bounds, not g_i(t_{n+1/2}). Why:
+the step's equation M (Vbar^{n+1} - Vbar^n) / dt + A U^{n+1/2} = L + lam, multiplied by
+U^{n+1} - U^n = dt (Vbar^{n+1} + Vbar^n) / 2, gives exactly (L constant)
+
+    E^{n+1} - E^n = lam . (U^{n+1} - U^n),    E = 1/2 Vbar^T M Vbar + 1/2 U^T A U - L^T U.
+
+Where lam_i > 0, U^{n+1/2}_i equals the step's bound b_i, so U^{n+1}_i = 2 b_i - U^n_i. A vertex
+on the obstacle at t_n (U^n_i = g_i(t_n)) is on it at t_{n+1} (U^{n+1}_i = g_i(t_{n+1})) if and
+only if b_i = (g_i(t_n) + g_i(t_{n+1})) / 2; then lam_i (U^{n+1}_i - U^n_i) = lam_i (g_i(t_{n+1}) -
+g_i(t_n)), and by induction in sustained contact (started on the obstacle, as from rest in
+contact or an equilibrium start)
+
+    E^{n+1} - E^n = sum_i lam_i (g_i(t_{n+1}) - g_i(t_n)) = W^{n+1} - W^n,
+
+the column ``obstacle_work`` W: E - W is conserved to round-off. With b_i = g_i(t_{n+1/2}) instead,
+U^{n+1}_i - g_i(t_{n+1}) alternates in sign with the amplitude 2 |g(t_{n+1/2}) - mean| ~ dt^2 |g''| / 4
+(exact for a wall at constant velocity, where both are equal), and so does E - W. A vertex that
+arrives on a moving obstacle (an impact) loses energy as on a fixed one.
 """
 from sdm_dolfinx.schemes.base import Scheme
 
@@ -15,6 +35,7 @@ class Midpoint(Scheme):
     factor = 2.0
     constrained = "U^{n+1/2}"
     load_theta = 0.5                # L(t_{n+1/2})
+    bound_weight = 0.5              # U^{n+1/2} >= (g(t_n) + g(t_{n+1})) / 2 (see the module)
 
     def displacement(self, x, Un):
         return 2.0 * x - Un
