@@ -141,10 +141,12 @@ def test_backward_euler_keeps_the_vertex_on_the_wall_and_dissipates():
 @pytest.mark.parametrize("options, words", [
     ({"scheme": "newmark"}, "does not say at which time"),
     ({"contact": "penalty"}, "contact 'penalty'"),
+    ({"contact": "nitsche"}, "contact 'nitsche'"),
+    ({"scheme": "central-difference", "mass": "redistributed", "pair": "P1/P1"}, "does not say at which time"),
 ])
 def test_a_moving_bound_is_refused_where_it_cannot_be_taken(options, words):
     with pytest.raises(SdmError, match=words):
-        simulate(_moving_wall_bar(), pair="P2/P1", dt=DT, T=10 * DT, **options)
+        simulate(_moving_wall_bar(), **{"pair": "P2/P1", "dt": DT, "T": 10 * DT, **options})
 
 
 def test_a_fixed_bound_has_no_obstacle_columns(fixed_wall):
@@ -190,6 +192,11 @@ def test_a_problem_file_declares_a_moving_wall_and_render_places_it(mpi_tmp_path
         assert drawn["points"][0][2] == pytest.approx(-0.2 + 0.3, abs=1e-14) and "it moves" in drawn["note"]
         assert "unknown" in declared_obstacle(run, None)        # an animation: not drawn, said why
     COMM.Barrier()
+    # a restart extends it as if run in one go (the bound of each step is evaluated afresh)
+    simulate(str(path), {"V": 1.0}, out=mpi_tmp_path / "cut", T=0.2)
+    e = simulate(out=mpi_tmp_path / "cut", restart=True, T=0.4).timeseries
+    for column in ("contact_force", "obstacle_work", "obstacle_probe", "energy"):
+        assert np.allclose(e[column], s[column], rtol=0, atol=1e-12), column
 
 
 RISE, OMEGA_FLOOR = 0.01, 2 * np.pi / 0.02
