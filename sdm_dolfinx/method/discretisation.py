@@ -258,12 +258,6 @@ class Discretisation:
         self.cmeasure = np.array(meas)
         self.q1_of_c = vertex_to_dof(self.Q1, self.cverts)
 
-    def bounds_at(self, t):
-        """(bound at the constrained dofs, bound at the constrained boundary's dofs) at time ``t``: a
-        moving bound (``Problem.moving_bound``) evaluated again; :attr:`lb` and :attr:`blb` are at t = 0."""
-        return (problem_data.bound(self.problem, self.cx, self.comm, t),
-                problem_data.bound(self.problem, self.bx, self.comm, t))
-
     def _dirichlet(self):
         p = self.problem
         W = self.W

@@ -8,7 +8,7 @@ from petsc4py import PETSc
 import numpy as np
 
 from sdm_dolfinx.method.errors import DiscretisationError
-from sdm_dolfinx.problems.base import label
+from sdm_dolfinx.problems.base import bound_at, label
 
 
 def refuse(problem, comm, wrong):
@@ -37,7 +37,7 @@ def vertices(problem, comm):
 def bound(problem, x, comm, t=0.0):
     """``problem.lower_bound(x)`` (a moving bound: ``lower_bound(x, t)``) at the points ``x`` (3, n):
     n finite numbers."""
-    lb = np.asarray(problem.bound(x, t))
+    lb = np.asarray(bound_at(problem, x, t))
     wrong = None
     if lb.shape != (x.shape[1],):
         wrong = (f"lower_bound returned an array of shape {lb.shape} for x of shape {x.shape}; it must return "
@@ -45,7 +45,7 @@ def bound(problem, x, comm, t=0.0):
     elif not np.all(np.isfinite(lb)):
         bad = ~np.isfinite(lb)
         wrong = f"lower_bound returned non-finite values ({lb[bad][0]}) at {int(np.sum(bad))} point(s)"
-        if problem.moving_bound:
+        if getattr(problem, "moving_bound", False):
             wrong += f" at t = {t:.6g}"
     refuse(problem, comm, wrong)
     return lb.astype(PETSc.ScalarType)

@@ -30,7 +30,7 @@ from sdm_dolfinx import compat
 from sdm_dolfinx.io import PostprocessError
 from sdm_dolfinx.method.discretisation import vertex_coordinates
 from sdm_dolfinx.post.rebuild_run import rebuild_problem
-from sdm_dolfinx.problems.base import one_line
+from sdm_dolfinx.problems.base import bound_at, one_line
 
 #: obstacle points whose coordinate x_c (or bound) varies by less than this, relative to the
 #: body's size (or to the largest bound), form a flat obstacle
@@ -71,11 +71,12 @@ def _evaluate(problem, vertices_of_run, time=None):
     verts = np.asarray(problem.constraint_vertices(msh), dtype=np.int32)
     if verts.size == 0:
         return {"none": f"problem {problem.name!r} constrains no vertex"}
-    if problem.moving_bound and time is None:
+    moving = getattr(problem, "moving_bound", False)
+    if moving and time is None:
         return {"unknown": f"problem {problem.name!r}'s obstacle moves, and an animation draws none (its position "
                            f"per step: the column obstacle_probe)"}
     x = vertex_coordinates(msh, verts)                           # (3, n)
-    bound = np.asarray(problem.bound(x, 0.0 if time is None else float(time)), dtype=float).reshape(-1)
+    bound = np.asarray(bound_at(problem, x, 0.0 if time is None else float(time)), dtype=float).reshape(-1)
     c = problem.constraint_component if problem.shape else None
     points = x.T.copy()
     if c is None:
@@ -90,6 +91,6 @@ def _evaluate(problem, vertices_of_run, time=None):
         note = f"grey: the obstacle {axis} = {flat:.4g}"
     else:
         note = f"grey: the obstacle through its {len(verts)} points"
-    if problem.moving_bound:
+    if moving:
         note += f" at t = {float(time):.4g} (it moves)"
     return {"component": None if c is None else int(c), "flat": flat, "points": points.tolist(), "note": note}

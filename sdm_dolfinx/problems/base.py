@@ -198,11 +198,16 @@ class Problem:
         return d
 
     def bound(self, x: npt.NDArray[np.float64], t: float = 0.0) -> npt.ArrayLike:
-        """The bound ``lower_bound`` at the points x (3, n) at the time t (a bound that does not
-        move, ``moving_bound`` False, is called as ``lower_bound(x)``: t is then not used)."""
-        if self.moving_bound:
-            return self.lower_bound(x, t)        # type: ignore[call-arg]
-        return self.lower_bound(x)
+        """The bound ``lower_bound`` at the points x (3, n) at the time t (:func:`bound_at`)."""
+        return bound_at(self, x, t)
+
+
+def bound_at(problem: Any, x: npt.NDArray[np.float64], t: float = 0.0) -> npt.ArrayLike:
+    """``problem.lower_bound`` at the points x (3, n) at the time t: ``lower_bound(x, t)`` for a moving
+    bound (``moving_bound``), else ``lower_bound(x)`` (t not used)."""
+    values: npt.ArrayLike = problem.lower_bound(x, t) if getattr(problem, "moving_bound", False) \
+        else problem.lower_bound(x)
+    return values
 
 
 class ProblemInputError(SdmError, ValueError):

@@ -16,13 +16,6 @@ acceleration: :attr:`Integrator.stateful`) and updates (U, V) from X; an explici
 with M only (:mod:`.step_mass`). A contact treatment other than the exact one (penalty, Nitsche:
 :mod:`sdm_dolfinx.contact`) replaces the VI by its own step solver.
 
-A moving bound (``Problem.moving_bound``): before every step the bound g at t_n and t_{n+1} is
-evaluated and the step imposes the scheme's :meth:`~sdm_dolfinx.schemes.base.Scheme.step_bound`
-(midpoint: their mean, backward Euler: g(t_{n+1})), written in place into the discretisation's
-``lb``, the array the step solver reads; after the solve ``lb`` holds g(t_{n+1}), the bound at the
-state (gaps, contact energy, the next step). The step's ``obstacle_work`` is
-sum_i lam_i (g_i(t_{n+1}) - g_i(t_n)) (:mod:`sdm_dolfinx.schemes.midpoint` derives why).
-
 L is the vector assembled once, or, for a Problem that declares ``time``, L reassembled before
 every step at the time the scheme evaluates the load (:meth:`Scheme.load_time`). Before every
 step the data assembled once are checked unchanged (:class:`~sdm_dolfinx.method.frozen.FrozenData`).
@@ -31,7 +24,7 @@ from mpi4py import MPI
 
 import numpy as np
 
-from sdm_dolfinx.method import gaps as _gaps, iterative as _iterative, step_matrix as _step_matrix
+from sdm_dolfinx.method import gaps as _gaps, iterative as _iterative, moving_bound as _mb, step_matrix as _step_matrix
 from sdm_dolfinx.contact import friction as _friction, friction_bound as _friction_bound
 from sdm_dolfinx.contact.context import StepContext
 from sdm_dolfinx import schemes
@@ -87,18 +80,14 @@ class Integrator:
         self.friction = friction if friction is not None and friction.on else None
         self.treatment, self.state = None, None
         refused = _friction.check_solver(self.friction and self.friction.law, vi_solver, linear)
-        self.moving_bound = bool(discretisation.problem.moving_bound) and discretisation.num_constraints > 0
-        refused = refused or [r for r in (self._refuse_contact(), self._refuse_moving(), ts.refuse(self)) if r]
+        refused = refused or [r for r in (self._refuse_contact(), _mb.refusal(discretisation, ts, contact),
+                                          ts.refuse(self)) if r]
         if refused:
             raise DiscretisationError(refused[0])
         ts.setup(self)
         self._build()
         self._make_solver(vi_solver, linear, options, contact_options)
-        if self.moving_bound and self._own_bounds(discretisation):
-            raise DiscretisationError(f"problem {discretisation.problem.name!r} has a moving bound, and step solver "
-                                      f"{type(self.solver).__name__} keeps its own copy of the bounds: it cannot "
-                                      f"take the bound of each step")
-        self._bound_cache = {}
+        self.moving = _mb.MovingBound(discretisation, ts, self.dt, self.solver)     # a moving obstacle's bounds
         ts.prepare(self)
 
     @property
@@ -123,39 +112,6 @@ class Integrator:
             return (f"contact {self.contact!r} is written in the M formulation; mass 'consistent' solves the "
                     f"(U, V) block system: use mass 'lumped'")
         return None
-
-    def _refuse_moving(self):
-        """The refusal of a moving bound by a scheme that does not say when it imposes it, or by a
-        contact treatment (penalty, Nitsche: they assemble the bound once), or None."""
-        if not self.moving_bound:
-            return None
-        name = self.discretisation.problem.name
-        if self.time_scheme.bound_weight is None:
-            return (f"problem {name!r} has a moving bound, and scheme {self.scheme!r} does not say at which time it "
-                    f"imposes it (Scheme.bound_weight): use the midpoint or backward-euler scheme")
-        if self.contact != "exact":
-            return (f"problem {name!r} has a moving bound, which contact {self.contact!r} does not take (it "
-                    f"evaluates the bound once): use contact 'exact'")
-        return None
-
-    def _own_bounds(self, d):
-        """The step solver keeps its own copy of the bounds on some rank (it would not see the bound of
-        each step written into ``d.lb``; collective: a rank without constraints has nothing to share)."""
-        lb = getattr(self.solver, "lb", None)
-        own = len(d.lb) > 0 and (lb is None or not np.shares_memory(np.asarray(lb), d.lb))
-        return d.comm.allreduce(bool(own), op=MPI.LOR)
-
-    def _step_bounds(self, n, t):
-        """(g(t_n), g(t_{n+1})) of a moving bound at the constrained dofs, each evaluated once (the
-        end of one step is the start of the next: t_{n+1} = (n + 1) dt when t = n dt)."""
-        t1 = (n + 1) * self.dt if t == n * self.dt else t + self.dt
-        cache = self._bound_cache
-        for tk in (t, t1):
-            if tk not in cache:
-                cache[tk] = self.discretisation.bounds_at(tk)
-        g0, g1 = cache[t], cache[t1]
-        self._bound_cache = {t1: g1}
-        return g0, g1
 
     def _make_solver(self, vi_solver, linear, options, contact_options):
         d = self.discretisation
@@ -288,9 +244,7 @@ class Integrator:
         if changed:
             raise StepError(f"step {n + 1} (t = {t + self.dt:.6g}): {changed}")
         L = d.load(ts.load_time(t, self.dt), self._L_step) if self.time_dependent else d.L
-        if self.moving_bound:
-            (g0, _), (g1, blb1) = self._step_bounds(n, t)
-            d.lb[:] = ts.step_bound(g0, g1)       # in place: the array the step solver reads
+        self.moving.before_step(n, t)       # a moving obstacle: the step's bound into d.lb (else nothing)
         if ts.stateful and self.state is None:
             self.state = ts.start(self, U, V, t)
         b = ts.rhs(self, U, V, L, t)
@@ -307,9 +261,7 @@ class Integrator:
         # a contact treatment imposes nothing (penetration is its model): +inf
         imposed = ts.imposed_gap(self, X) if self.treatment is None else float("inf")
         info["gap_imposed"] = comm.allreduce(imposed, op=MPI.MIN)
-        if self.moving_bound:         # the bound at the state t_{n+1}; the work of the contact force on its motion
-            d.lb[:], d.blb[:] = g1, blb1
-            info["obstacle_work"] = comm.allreduce(float(np.dot(self.lam, g1 - g0)), op=MPI.SUM)
+        self.moving.after_solve(self.lam, info)     # the bound at t_{n+1}, the step's obstacle_work
         Un = U.array.copy() if self.friction is not None else None
         ts.update(self, X, U, V, t)
         if self.friction is not None:

@@ -132,7 +132,7 @@ class TimeSeries:
         boundary = (BOUNDARY_GAP,) if d.num_boundary_dofs else ()
         friction_cols = friction_columns(problem) if friction else ()
         contact = (CONTACT_ENERGY,) if contact_energy else ()
-        obstacle = OBSTACLE_COLUMNS if problem.moving_bound and d.num_constraints else ()
+        obstacle = OBSTACLE_COLUMNS if getattr(problem, "moving_bound", False) and d.num_constraints else ()
         self.columns: tuple[str, ...] = (BASE_COLUMNS + contact + tuple(problem.extra_columns) + friction_cols
                                          + boundary + obstacle)
         self.data = {c: np.zeros(nsteps + 1) for c in self.columns}
