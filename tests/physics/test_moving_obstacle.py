@@ -225,3 +225,26 @@ def test_a_rising_floor_lifts_the_block_with_and_without_friction(friction):
         assert np.all(s["n_active"][1:] == s["n_active"][1])
         balance = s["energy"] - s["obstacle_work"]
         assert np.max(np.abs(balance - balance[0])) <= 1e-9 * abs(balance[0])
+
+
+def test_the_command_line_runs_a_moving_wall_and_refuses_a_scheme_that_cannot(mpi_tmp_path, capsys):
+    """The problem file above from the command line and a TOML configuration (exit 0), the energy
+    command on its folder; newmark is refused in one line, exit 2, nothing written."""
+    from sdm_dolfinx import cli
+    path = mpi_tmp_path / "wall.py"
+    if COMM.rank == 0:
+        path.write_text(WALL_FILE)
+        (mpi_tmp_path / "wall.toml").write_text(f'problem-file = "{path}"\nT = 0.3\nV = 0.5\n')
+    COMM.Barrier()
+    out = mpi_tmp_path / "cli"
+    assert cli.main(["run", "--problem-file", str(path), "--T", "0.3", "--quiet", "--out", str(out)]) == 0
+    assert cli.main(["run", "--config", str(mpi_tmp_path / "wall.toml"), "--quiet", "--out",
+                     str(mpi_tmp_path / "toml")]) == 0
+    assert cli.main(["energy", str(out)]) == 0
+    capsys.readouterr()
+    bad = mpi_tmp_path / "bad"
+    assert cli.main(["run", "--problem-file", str(path), "--scheme", "newmark", "--out", str(bad)]) == 2
+    err = capsys.readouterr().err
+    if COMM.rank == 0:
+        assert "moving bound" in err and len(err.strip().splitlines()) == 1, err
+        assert not bad.exists()
