@@ -172,7 +172,7 @@ PROBLEM = ProblemSpec(name="wall", build=build, doc=__doc__,
 '''
 
 
-def test_a_problem_file_declares_a_moving_wall_and_render_places_it(mpi_tmp_path):
+def test_a_problem_file_declares_a_moving_wall_and_render_places_it(mpi_tmp_path, clean_registry):
     import json
     from sdm_dolfinx.post.render_obstacle import declared_obstacle
     path = mpi_tmp_path / "wall.py"
@@ -227,7 +227,7 @@ def test_a_rising_floor_lifts_the_block_with_and_without_friction(friction):
         assert np.max(np.abs(balance - balance[0])) <= 1e-9 * abs(balance[0])
 
 
-def test_the_command_line_runs_a_moving_wall_and_refuses_a_scheme_that_cannot(mpi_tmp_path, capsys):
+def test_the_command_line_runs_a_moving_wall_and_refuses_a_scheme_that_cannot(mpi_tmp_path, capsys, clean_registry):
     """The problem file above from the command line and a TOML configuration (exit 0), the energy
     command on its folder; newmark is refused in one line, exit 2, nothing written."""
     from sdm_dolfinx import cli
