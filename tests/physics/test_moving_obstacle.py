@@ -252,3 +252,14 @@ def test_the_command_line_runs_a_moving_wall_and_refuses_a_scheme_that_cannot(mp
     if COMM.rank == 0:
         assert "moving bound" in err and len(err.strip().splitlines()) == 1, err
         assert not bad.exists()
+
+
+@pytest.mark.parametrize("moving, bound, words", [
+    (True, lambda x: np.zeros(x.shape[1]), "moving_bound=True: lower_bound takes"),
+    (False, lambda x, t: np.zeros(x.shape[1]), "needs Problem\\(moving_bound=True\\)"),
+])
+def test_a_bound_of_the_wrong_signature_is_refused_in_one_line(moving, bound, words):
+    p = bar.problem(COMM, NX=4)
+    p.lower_bound, p.moving_bound = bound, moving
+    with pytest.raises(SdmError, match=words):
+        simulate(p, dt=DT, T=2 * DT)
