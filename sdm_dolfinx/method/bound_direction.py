@@ -12,6 +12,8 @@ from mpi4py import MPI
 
 import numpy as np
 
+from sdm_dolfinx.problems.base import bound_at
+
 #: slopes within this of -1 (or of 0) count as -1 (or 0)
 SLOPE_TOL = 1e-6
 
@@ -28,12 +30,12 @@ def misdirected_bound(problem, cx, comm):
     x = problem.mesh.geometry.x
     extent = comm.allreduce(float(np.ptp(x, axis=0).max()) if len(x) else 0.0, op=MPI.MAX)
     h = 1e-3 * extent if extent > 0 else 1e-3
-    g0 = np.asarray(problem.lower_bound(cx), dtype=float).reshape(-1)
+    g0 = np.asarray(bound_at(problem, cx), dtype=float).reshape(-1)
     slopes = []
     for j in range(gdim):
         x = np.array(cx, dtype=float, copy=True)
         x[j] += h
-        d = (np.asarray(problem.lower_bound(x), dtype=float).reshape(-1) - g0) / h
+        d = (np.asarray(bound_at(problem, x), dtype=float).reshape(-1) - g0) / h
         # (max |slope + 1|, max |slope|) over the owned vertices, then over the ranks
         local = (float(np.max(np.abs(d + 1.0), initial=0.0)), float(np.max(np.abs(d), initial=0.0)))
         slopes.append(tuple(comm.allreduce(v, op=MPI.MAX) for v in local))

@@ -8,7 +8,7 @@ from petsc4py import PETSc
 import numpy as np
 
 from sdm_dolfinx.method.errors import DiscretisationError
-from sdm_dolfinx.problems.base import label
+from sdm_dolfinx.problems.base import bound_at, label, one_line
 
 
 def refuse(problem, comm, wrong):
@@ -34,16 +34,26 @@ def vertices(problem, comm):
     return verts.astype(np.int32).reshape(-1)
 
 
-def bound(problem, x, comm):
-    """``problem.lower_bound(x)`` at the points ``x`` (3, n): n finite numbers."""
-    lb = np.asarray(problem.lower_bound(x))
-    wrong = None
-    if lb.shape != (x.shape[1],):
+def bound(problem, x, comm, t=0.0):
+    """``problem.lower_bound(x)`` (a moving bound: ``lower_bound(x, t)``) at the points ``x`` (3, n):
+    n finite numbers."""
+    moving, wrong = getattr(problem, "moving_bound", False), None
+    try:
+        lb = np.asarray(bound_at(problem, x, t))
+    except TypeError as e:          # a bound of x called with (x, t), or the other way round
+        lb = np.zeros(x.shape[1])
+        hint = ("moving_bound=True: lower_bound takes (x, t)" if moving else
+                "a bound that takes (x, t) needs Problem(moving_bound=True)")
+        wrong = (f"lower_bound({'x, t' if moving else 'x'}) failed ({one_line(e)})"
+                 + (f": {hint}" if "positional argument" in str(e) else ""))
+    if wrong is None and lb.shape != (x.shape[1],):
         wrong = (f"lower_bound returned an array of shape {lb.shape} for x of shape {x.shape}; it must return "
                  f"shape ({x.shape[1]},), the bound at each point")
-    elif not np.all(np.isfinite(lb)):
+    elif wrong is None and not np.all(np.isfinite(lb)):
         bad = ~np.isfinite(lb)
         wrong = f"lower_bound returned non-finite values ({lb[bad][0]}) at {int(np.sum(bad))} point(s)"
+        if moving:
+            wrong += f" at t = {t:.6g}"
     refuse(problem, comm, wrong)
     return lb.astype(PETSc.ScalarType)
 

@@ -179,15 +179,16 @@ class Look:
                 + f"; {said}")
 
 
-def obstacle_of(series):
-    """The obstacle the run's problem declares (:mod:`.render_obstacle`), computed once per Series;
-    a :class:`RenderWarning` says why when it cannot be known (it is then not drawn)."""
+def obstacle_of(series, time=None):
+    """The obstacle the run's problem declares (:mod:`.render_obstacle`; a moving one where it is at
+    ``time``, the picture's), computed once per Series; a :class:`RenderWarning` says why when it
+    cannot be known (it is then not drawn)."""
     if getattr(series, "obstacle", None) is None:
         if not __package__:
             return {"unknown": "the obstacle is computed by the package (dolfinx), not in this process"}
         import warnings
         from sdm_dolfinx.post.render_obstacle import declared_obstacle
-        series.obstacle = declared_obstacle(series.run)
+        series.obstacle = declared_obstacle(series.run, time)
         if "unknown" in series.obstacle:
             warnings.warn(f"the obstacle is not drawn: {series.obstacle['unknown']}", RenderWarning, stacklevel=3)
     return series.obstacle
@@ -293,7 +294,7 @@ def picture(run, png, time=None, scale=None, size=None, obstacle=None):
     """
     series, kind, scale = _prepare(run, time, scale, obstacle)
     t, png = check_time(series, time), check_output(png, (".png",))
-    obstacle = obstacle_of(series)
+    obstacle = obstacle_of(series, t)
     look = Look(series, kind, scale, obstacle)
     size = tuple(size or ((1200, 600) if kind == "solid3d" else (900, 700)))
     png.parent.mkdir(parents=True, exist_ok=True)

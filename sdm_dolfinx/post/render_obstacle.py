@@ -15,7 +15,11 @@ The result is plain data (JSON-able: the pyvista drawing runs in a child process
      obstacle's points above/beside the constrained vertices (scalar u: (x, y, bound)),
      "note": the picture's words for it}
 
-or ``{"none": reason}`` when the problem constrains no vertex, or ``{"unknown": reason}`` when the
+A moving obstacle (``Problem.moving_bound``, ``lower_bound(x, t)``) is evaluated at the picture's
+time; an animation, whose frames would each need their own, does not draw it (``{"unknown": ...}``:
+the time series' ``obstacle_probe`` has its position at every step).
+
+Or ``{"none": reason}`` when the problem constrains no vertex, or ``{"unknown": reason}`` when the
 obstacle cannot be known (a run of a problem built by hand, a problem file changed since the run).
 """
 from mpi4py import MPI
@@ -26,15 +30,16 @@ from sdm_dolfinx import compat
 from sdm_dolfinx.io import PostprocessError
 from sdm_dolfinx.method.discretisation import vertex_coordinates
 from sdm_dolfinx.post.rebuild_run import rebuild_problem
-from sdm_dolfinx.problems.base import one_line
+from sdm_dolfinx.problems.base import bound_at, one_line
 
 #: obstacle points whose coordinate x_c (or bound) varies by less than this, relative to the
 #: body's size (or to the largest bound), form a flat obstacle
 FLAT_TOLERANCE = 1e-9
 
 
-def declared_obstacle(run):
-    """The obstacle of the run whose ``run.json`` contents are ``run`` (see the module).
+def declared_obstacle(run, time=None):
+    """The obstacle of the run whose ``run.json`` contents are ``run`` (see the module), a moving one
+    at ``time`` (None: not drawn).
 
     Builds the run's Problem again on this process alone (``MPI.COMM_SELF``).
     """
@@ -55,10 +60,10 @@ def declared_obstacle(run):
         return {"unknown": str(e)}
     except Exception as e:          # a user's build: any error is said in one line, the picture drawn without it
         return {"unknown": f"its problem could not be built again ({one_line(e)})"}
-    return _evaluate(problem, run.get("mesh", {}).get("vertices"))
+    return _evaluate(problem, run.get("mesh", {}).get("vertices"), time)
 
 
-def _evaluate(problem, vertices_of_run):
+def _evaluate(problem, vertices_of_run, time=None):
     msh = problem.mesh
     nverts = msh.topology.index_map(0).size_local
     if vertices_of_run is not None and nverts != vertices_of_run:
@@ -66,8 +71,12 @@ def _evaluate(problem, vertices_of_run):
     verts = np.asarray(problem.constraint_vertices(msh), dtype=np.int32)
     if verts.size == 0:
         return {"none": f"problem {problem.name!r} constrains no vertex"}
+    moving = getattr(problem, "moving_bound", False)
+    if moving and time is None:
+        return {"unknown": f"problem {problem.name!r}'s obstacle moves, and an animation draws none (its position "
+                           f"per step: the column obstacle_probe)"}
     x = vertex_coordinates(msh, verts)                           # (3, n)
-    bound = np.asarray(problem.lower_bound(x), dtype=float).reshape(-1)
+    bound = np.asarray(bound_at(problem, x, 0.0 if time is None else float(time)), dtype=float).reshape(-1)
     c = problem.constraint_component if problem.shape else None
     points = x.T.copy()
     if c is None:
@@ -82,4 +91,6 @@ def _evaluate(problem, vertices_of_run):
         note = f"grey: the obstacle {axis} = {flat:.4g}"
     else:
         note = f"grey: the obstacle through its {len(verts)} points"
+    if moving:
+        note += f" at t = {float(time):.4g} (it moves)"
     return {"component": None if c is None else int(c), "flat": flat, "points": points.tolist(), "note": note}

@@ -70,7 +70,17 @@ class Problem:
         v0: initial velocity, same form.
         constraint_vertices: ``mesh -> local vertex indices`` where K^h acts (eq. (13)).
         lower_bound: ``x (3, n) -> (n,)`` the bound on the constrained displacement
-            component at vertices of coordinates x: u_c(a_i) >= lower_bound(a_i).
+            component at vertices of coordinates x: u_c(a_i) >= lower_bound(a_i); with
+            ``moving_bound`` it is ``(x, t) -> (n,)``, the bound at the time t.
+        moving_bound: the obstacle moves along the constrained component: ``lower_bound`` takes
+            ``(x, t)`` (a rising floor, a wall moving at V: ``lambda x, t: V * t - x[0]``). Each
+            step imposes the bound of the step, :meth:`Scheme.step_bound
+            <sdm_dolfinx.schemes.base.Scheme.step_bound>`: the midpoint scheme constrains
+            U^{n+1/2} >= (g(t_n) + g(t_{n+1})) / 2 (the mean of the bounds, which keeps a vertex
+            in sustained contact on the obstacle at every t_n, so that E - obstacle_work is
+            conserved: :mod:`sdm_dolfinx.schemes.midpoint`), backward Euler U^{n+1} >= g(t_{n+1});
+            the other schemes, the penalty and Nitsche treatments refuse it in one line. The time
+            series gets the columns ``obstacle_work`` and ``obstacle_probe``.
         constraint_component: component of u that is bounded, and that ``u_probe`` records:
             required for a vector u (an int in 0..gdim-1; the Problem refuses None), None (or 0)
             for a scalar u.
@@ -138,6 +148,7 @@ class Problem:
     time: Optional[Constant] = None
     stress: Optional[Callable[[UFL], UFL]] = None
     dirichlet_parts: Sequence[DirichletPart] = ()
+    moving_bound: bool = False
 
     def __post_init__(self) -> None:
         self.validate()
@@ -177,6 +188,9 @@ class Problem:
             raise ProblemInputError(f"problem {self.name!r}: time must be a scalar fem.Constant used by l(w) "
                                     f"(got {type(self.time).__name__})")
         validate_parts(self.name, self.dirichlet_parts, shape)
+        if not isinstance(self.moving_bound, (bool, np.bool_)):
+            raise ProblemInputError(f"problem {self.name!r}: moving_bound must be True (lower_bound takes (x, t)) or "
+                                    f"False (lower_bound takes x) (got {self.moving_bound!r})")
         rho = self.rho
         if isinstance(rho, bool) or not isinstance(rho, (int, float, np.integer, np.floating)) \
                 or not (np.isfinite(rho) and rho > 0):
@@ -202,7 +216,21 @@ class Problem:
             d["load"] = "time-dependent (reassembled every step at the scheme's load time)"
         if self.dirichlet_parts:
             d["dirichlet_parts"] = [part.describe(tuple(self.shape)) for part in self.dirichlet_parts]
+        if self.moving_bound:
+            d["bound"] = "moving: lower_bound(x, t) (each step imposes the scheme's step bound)"
         return d
+
+    def bound(self, x: npt.NDArray[np.float64], t: float = 0.0) -> npt.ArrayLike:
+        """The bound ``lower_bound`` at the points x (3, n) at the time t (:func:`bound_at`)."""
+        return bound_at(self, x, t)
+
+
+def bound_at(problem: Any, x: npt.NDArray[np.float64], t: float = 0.0) -> npt.ArrayLike:
+    """``problem.lower_bound`` at the points x (3, n) at the time t: ``lower_bound(x, t)`` for a moving
+    bound (``moving_bound``), else ``lower_bound(x)`` (t not used)."""
+    values: npt.ArrayLike = problem.lower_bound(x, t) if getattr(problem, "moving_bound", False) \
+        else problem.lower_bound(x)
+    return values
 
 
 def label(problem: Any) -> str:

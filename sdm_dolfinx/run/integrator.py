@@ -26,7 +26,7 @@ from mpi4py import MPI
 
 import numpy as np
 
-from sdm_dolfinx.method import gaps as _gaps, iterative as _iterative, step_matrix as _step_matrix
+from sdm_dolfinx.method import gaps as _gaps, iterative as _iterative, moving_bound as _mb, step_matrix as _step_matrix
 from sdm_dolfinx.contact import friction as _friction, friction_bound as _friction_bound
 from sdm_dolfinx.contact.context import StepContext
 from sdm_dolfinx.run import prescribed as _prescribed
@@ -87,12 +87,14 @@ class Integrator:
         self.parts = _prescribed.Prescribed() if discretisation.problem.dirichlet_parts else None
         refused = _friction.check_solver(self.friction and self.friction.law, vi_solver, linear)
         parts_refused = self.parts.refuse(self) if self.parts else None
-        refused = refused or [r for r in (self._refuse_contact(), parts_refused, ts.refuse(self)) if r]
+        refused = refused or [r for r in (self._refuse_contact(), parts_refused,
+                                          _mb.refusal(discretisation, ts, contact), ts.refuse(self)) if r]
         if refused:
             raise DiscretisationError(refused[0])
         ts.setup(self)
         self._build()
         self._make_solver(vi_solver, linear, options, contact_options)
+        self.moving = _mb.MovingBound(discretisation, ts, self.dt, self.solver)     # a moving obstacle's bounds
         ts.prepare(self)
 
     @property
@@ -255,6 +257,7 @@ class Integrator:
         L = d.load(ts.load_time(t, self.dt), self._L_step) if self.time_dependent else d.L
         if self.parts:
             self.parts.lift(self, U, t)
+        self.moving.before_step(n, t)       # a moving obstacle: the step's bound into d.lb (else nothing)
         if ts.stateful and self.state is None:
             self.state = ts.start(self, U, V, t)
         b = ts.rhs(self, U, V, L, t)
@@ -271,6 +274,7 @@ class Integrator:
         # a contact treatment imposes nothing (penetration is its model): +inf
         imposed = ts.imposed_gap(self, X) if self.treatment is None else float("inf")
         info["gap_imposed"] = comm.allreduce(imposed, op=MPI.MIN)
+        self.moving.after_solve(self.lam, info)     # the bound at t_{n+1}, the step's obstacle_work
         Un = U.array.copy() if self.friction is not None else None
         Un_D = U.array[d.ddofs].copy() if self.parts else None
         ts.update(self, X, U, V, t)

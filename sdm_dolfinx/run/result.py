@@ -32,6 +32,12 @@ BASE_COLUMNS = ("step", "t", "energy", "kinetic", "potential", "u_probe", "lambd
 #: sticking and slipping vertices (the step solver's sets); in 3-D the first two are written per
 #: tangential axis, signed (:func:`friction_columns`)
 FRICTION_COLUMNS = ("tangential_force", "slip_probe", "dissipated", "n_stick", "n_slip")
+#: the columns of a run whose obstacle moves (``Problem.moving_bound``, docs/outputs.md): the
+#: cumulative work of the contact force on the obstacle's motion sum_steps sum_i lam_i (g_i(t_{n+1}) -
+#: g_i(t_n)) (E - obstacle_work is conserved by the midpoint scheme in sustained contact:
+#: :mod:`sdm_dolfinx.schemes.midpoint`), and the bound g(t) at the probe's constrained vertex (the
+#: obstacle's position there, in displacement: the vertex a touches it when u_c(a) = obstacle_probe)
+OBSTACLE_COLUMNS = ("obstacle_work", "obstacle_probe")
 
 
 def friction_columns(problem: Problem) -> tuple[str, ...]:
@@ -154,8 +160,9 @@ class TimeSeries:
         friction_cols = friction_columns(problem) if friction else ()
         contact = (CONTACT_ENERGY,) if contact_energy else ()
         self.reaction_columns = dirichlet_columns(problem)[:-1]
+        obstacle = OBSTACLE_COLUMNS if getattr(problem, "moving_bound", False) and d.num_constraints else ()
         self.columns: tuple[str, ...] = (BASE_COLUMNS + contact + tuple(problem.extra_columns) + friction_cols
-                                         + boundary + dirichlet_columns(problem))
+                                         + boundary + dirichlet_columns(problem) + obstacle)
         self.data = {c: np.zeros(nsteps + 1) for c in self.columns}
         self.comm = problem.mesh.comm
         if boundary:
@@ -198,6 +205,10 @@ class TimeSeries:
             row[DIRICHLET_WORK] = before + info.get("dirichlet_work", 0.0)
         if "elastic" in self.columns:            # 1/2 U^T A U = potential + U^T L
             row["elastic"] = pot + U.dot(f.load(t))
+        if "obstacle_work" in self.columns:      # the discretisation's lb is the bound at the state's time
+            before = self.data["obstacle_work"][n - 1] if n > 0 else 0.0
+            row.update(obstacle_work=before + (step or {}).get("obstacle_work", 0.0),
+                       obstacle_probe=self.cprobe.at(self.discretisation.lb))
         if BOUNDARY_GAP in self.columns:
             row[BOUNDARY_GAP] = gaps.boundary_gap(self.discretisation, U.array_r)
             self._track_sink(n, t, U, row[BOUNDARY_GAP])

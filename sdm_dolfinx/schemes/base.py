@@ -48,6 +48,9 @@ class Scheme:
         constrained: the iterate the constraint is imposed on (for ``run.json``).
         load_theta: a time-dependent load of step n -> n+1 is evaluated at t_n + load_theta dt
             (None: the scheme does not say, and refuses time-dependent loads).
+        bound_weight: a moving bound (``Problem.moving_bound``) is imposed on X at the step's
+            bound (1 - bound_weight) g(t_n) + bound_weight g(t_{n+1}) (:meth:`step_bound`; None: the
+            scheme does not say, and refuses a moving bound).
         options: the scheme's options (``scheme_options``), each a
             :class:`~sdm_dolfinx.params.Param` (default, bounds, help): the run options, the
             command line's ``--name`` and the checks of a value all derive from it.
@@ -61,6 +64,7 @@ class Scheme:
     factor: Optional[float] = None
     constrained: Optional[str] = None
     load_theta: Optional[float] = None
+    bound_weight: Optional[float] = None
     options: tuple[Param, ...] = ()
     explicit: bool = False
     stateful: bool = False
@@ -116,6 +120,15 @@ class Scheme:
             raise ValueError(f"scheme {self.name!r} does not say when it evaluates a time-dependent load "
                              f"(Scheme.load_theta)")
         return t + self.load_theta * dt
+
+    def step_bound(self, g0: Array, g1: Array) -> Array:
+        """The bound the step from t_n to t_{n+1} imposes on X, from a moving bound's values g0 at
+        t_n and g1 at t_{n+1}: (1 - w) g0 + w g1, w = :attr:`bound_weight` (w = 1: g1 exactly)."""
+        w = self.bound_weight
+        if w is None:
+            raise ValueError(f"scheme {self.name!r} does not say at which time it imposes a moving bound "
+                             f"(Scheme.bound_weight)")
+        return g1.copy() if w == 1.0 else (1.0 - w) * g0 + w * g1
 
     def start(self, integ: Integrator, U: PETSc.Vec, V: PETSc.Vec, t: float) -> Any:
         """The scheme's state before its first step from (U, V) at time t (stateful schemes)."""

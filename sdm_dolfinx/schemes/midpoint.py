@@ -19,6 +19,26 @@ same identity as the contact force, so that
 
 and with W_D the sum over the steps of R . (U^{n+1} - U^n) (the column ``dirichlet_work``),
 J - W_D is conserved to round-off without impact (tests/physics/test_prescribed_motion.py).
+
+A moving obstacle (``Problem.moving_bound``: u_c(a_i) >= g_i(t)) is imposed as
+U^{n+1/2}_i >= (g_i(t_n) + g_i(t_{n+1})) / 2, the mean of the bounds, not g_i(t_{n+1/2}). Why:
+the step's equation M (Vbar^{n+1} - Vbar^n) / dt + A U^{n+1/2} = L + lam, multiplied by
+U^{n+1} - U^n = dt (Vbar^{n+1} + Vbar^n) / 2, gives exactly (L constant)
+
+    E^{n+1} - E^n = lam . (U^{n+1} - U^n),    E = 1/2 Vbar^T M Vbar + 1/2 U^T A U - L^T U.
+
+Where lam_i > 0, U^{n+1/2}_i equals the step's bound b_i, so U^{n+1}_i = 2 b_i - U^n_i. A vertex
+on the obstacle at t_n (U^n_i = g_i(t_n)) is on it at t_{n+1} (U^{n+1}_i = g_i(t_{n+1})) if and
+only if b_i = (g_i(t_n) + g_i(t_{n+1})) / 2; then lam_i (U^{n+1}_i - U^n_i) = lam_i (g_i(t_{n+1}) -
+g_i(t_n)), and by induction in sustained contact (started on the obstacle, as from rest in
+contact or an equilibrium start)
+
+    E^{n+1} - E^n = sum_i lam_i (g_i(t_{n+1}) - g_i(t_n)) = W^{n+1} - W^n,
+
+the column ``obstacle_work`` W: E - W is conserved to round-off. With b_i = g_i(t_{n+1/2}) instead,
+U^{n+1}_i - g_i(t_{n+1}) alternates in sign with the amplitude 2 |g(t_{n+1/2}) - mean| ~ dt^2 |g''| / 4
+(exact for a wall at constant velocity, where both are equal), and so does E - W. A vertex that
+arrives on a moving obstacle (an impact) loses energy as on a fixed one.
 """
 from sdm_dolfinx.schemes.base import Scheme
 
@@ -33,6 +53,7 @@ class Midpoint(Scheme):
     def dirichlet_iterate(self, u_next, Un):
         """X = (U^n + u_D(t_{n+1}))/2: U^{n+1} = 2 X - U^n = u_D(t_{n+1}) exactly (module docstring)."""
         return 0.5 * (u_next + Un)
+    bound_weight = 0.5              # U^{n+1/2} >= (g(t_n) + g(t_{n+1})) / 2 (see the module)
 
     def displacement(self, x, Un):
         return 2.0 * x - Un
