@@ -1,9 +1,9 @@
-"""Everything that differs between dolfinx 0.5 (Debian 12) and dolfinx >= 0.7 (0.9/0.10).
+"""Everything that differs between dolfinx 0.5 (Debian 12) and dolfinx >= 0.7 (0.9/0.10/0.11),
+and between PETSc builds (:mod:`sdm_dolfinx.compat.petsc`, re-exported here).
 
-Only this module may look at ``dolfinx.__version__``; the rest of the package calls
-these helpers, so a port to a new dolfinx touches this file alone.
+Only this package may look at ``dolfinx.__version__``; the rest of the package calls
+these helpers, so a port to a new dolfinx touches this folder alone.
 """
-import ctypes
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +20,8 @@ NEW_API = DOLFINX_VERSION >= (0, 7)
 
 if NEW_API:  # pragma: no cover - exercised only on dolfinx >= 0.7
     import basix.ufl
+
+from sdm_dolfinx.compat.petsc import pc_failed_reason, petsc_has, petsc_options_used  # noqa: F401 (re-exported)
 
 #: a finite element: ufl's (dolfinx 0.5) or basix.ufl's (>= 0.7); neither is annotated
 Element = Any
@@ -217,12 +219,6 @@ def trapezoid(y, x):
     return (np.trapezoid if hasattr(np, "trapezoid") else np.trapz)(y, x)
 
 
-def pc_failed_reason(pc):
-    """``PC.getFailedReason()`` (petsc4py >= 3.20), or 0 on older petsc4py: MUMPS reports
-    its failures through INFOG(1) on every version."""
-    return int(pc.getFailedReason()) if hasattr(pc, "getFailedReason") else 0
-
-
 def interpolation_points(V):
     """Reference interpolation points of V's element (for ``fem.Expression``): a method in
     0.5, a property on newer versions."""
@@ -368,26 +364,3 @@ def vtk_mesh(V):
     if hasattr(plot, "vtk_mesh"):  # pragma: no cover
         return plot.vtk_mesh(V)
     return plot.create_vtk_mesh(V)
-
-
-_options_used: list[Any] = []      # [PetscOptionsUsed wrapper or None], found on first use
-
-
-def petsc_options_used(name):
-    """Whether PETSc has read the option ``name`` (no dash); None where that cannot be asked.
-
-    petsc4py (3.18 at least) does not wrap PetscOptionsUsed: it is called through ctypes in
-    libpetsc, which petsc4py's extension links."""
-    if not _options_used:
-        try:
-            f = ctypes.CDLL(PETSc.__file__).PetscOptionsUsed
-            f.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.POINTER(ctypes.c_int)]
-            f.restype = ctypes.c_int
-        except (OSError, AttributeError):
-            f = None
-        _options_used.append(f)
-    f = _options_used[0]
-    if f is None:
-        return None
-    flag = ctypes.c_int(0)
-    return f(None, name.encode(), ctypes.byref(flag)) == 0 and bool(flag.value)
