@@ -22,7 +22,8 @@ if NEW_API:  # pragma: no cover - exercised only on dolfinx >= 0.7
 
 # re-exported: the rest of the package calls compat.<name>
 from sdm_dolfinx.compat.mesh import (bounding_box_tree, cell_candidates, cell_tree, colliding_cells,  # noqa: F401
-                                     create_mesh, entities_to_geometry, mesh_geometry_dofmap, model_to_mesh)
+                                     create_mesh, entities_to_geometry, geometry_degree, mesh_geometry_dofmap,
+                                     model_to_mesh)
 from sdm_dolfinx.compat.petsc import pc_failed_reason, petsc_has, petsc_options_used  # noqa: F401
 
 #: a finite element: ufl's (dolfinx 0.5) or basix.ufl's (>= 0.7); neither is annotated
@@ -232,7 +233,7 @@ class _XDMFFile:
     def write_function(self, u, t=0.0):
         V = u.function_space
         elem = V.ufl_element()
-        degree = V.mesh.geometry.cmap.degree
+        degree = geometry_degree(V.mesh)
         if elem.embedded_superdegree == degree or (elem.embedded_superdegree == 0 and elem.discontinuous):
             self._file.write_function(u, t)
             return

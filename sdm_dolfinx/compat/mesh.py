@@ -9,6 +9,17 @@ from dolfinx import geometry
 from sdm_dolfinx.compat.version import DOLFINX_VERSION, NEW_API
 
 
+def geometry_degree(msh: Any) -> int:
+    """The polynomial degree of the mesh's coordinate element (2 for gmsh's curved P2 meshes).
+
+    0.5-0.10: ``geometry.cmap``; 0.11 deprecates it for ``geometry.cmaps[0]`` (python/dolfinx/mesh.py
+    at v0.11.0).
+    """
+    if DOLFINX_VERSION >= (0, 11):  # pragma: no cover
+        return int(msh.geometry.cmaps[0].degree)
+    return int(msh.geometry.cmap.degree)
+
+
 def create_mesh(comm, cells, x, domain):
     """``dolfinx.mesh.create_mesh`` from cells (global node indices, dolfinx's node order), node
     coordinates ``x`` and the coordinate element ``domain`` (a ``ufl.Mesh``); dolfinx partitions
@@ -61,7 +72,13 @@ def _num_cells(msh):
 
 
 def mesh_geometry_dofmap(msh: Any) -> Any:
-    """Cell -> geometry node indices, as a 2-D (num_cells, nodes_per_cell) array."""
+    """Cell -> geometry node indices, as a 2-D (num_cells, nodes_per_cell) array.
+
+    0.5: an AdjacencyList, reshaped; 0.7-0.10: ``geometry.dofmap``; 0.11 deprecates that for
+    ``geometry.dofmaps[0]`` (one per cell type; ours have one).
+    """
+    if DOLFINX_VERSION >= (0, 11):  # pragma: no cover
+        return msh.geometry.dofmaps[0]
     if NEW_API:  # pragma: no cover
         return msh.geometry.dofmap
     nodes = msh.geometry.cmap.create_dof_layout().num_dofs
