@@ -99,8 +99,9 @@ def factorise(M, comm, prefix, kind="cholesky", package="mumps", agree=None, ret
         if worst in (-8, -9) and attempt < retries:
             continue
         what = f"MUMPS INFOG(1) = {worst}, ICNTL(14) = {pct}" if worst else f"PC failed reason {reason}"
+        instead = "amg" if compat.petsc_has("hypre") else "cg-gamg"
         raise VIError(f"the factorisation of the {M.getSize()[0]}-row step matrix failed ({what}); "
-                      f"see the MUMPS user guide, or choose --linear amg")
+                      f"see the MUMPS user guide, or choose --linear {instead}")
     raise AssertionError("unreachable")
 
 
