@@ -14,3 +14,11 @@ class SdmError(Exception):
 
 class StepError(SdmError, RuntimeError):
     """A time step failed; the message names the step, the time and the cause."""
+
+
+def shown(value: object) -> str:
+    """``repr(value)`` for a one-line message, a numpy scalar shown as the Python number it holds
+    (numpy >= 2 writes ``np.float64(0.5)`` where numpy 1 wrote ``0.5``)."""
+    if type(value).__module__ == "numpy" and getattr(value, "ndim", None) == 0 and hasattr(value, "item"):
+        value = value.item()
+    return repr(value)

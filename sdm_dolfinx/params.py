@@ -18,7 +18,7 @@ from typing import Any, Optional, Union
 
 import numpy as np
 
-from sdm_dolfinx.errors import SdmError
+from sdm_dolfinx.errors import SdmError, shown
 
 #: what a declared type is: a Python type, or ``"point"``
 ParamType = Union[type, str]
@@ -106,22 +106,22 @@ class Param:
                 return ["needs a value"]
             return []
         if kind is bool:
-            return [] if isinstance(value, (bool, np.bool_)) else [f"must be true or false (got {value!r})"]
+            return [] if isinstance(value, (bool, np.bool_)) else [f"must be true or false (got {shown(value)})"]
         if kind in (str, Path):
             if choices is not None and value not in choices:
-                return [f"must be one of {', '.join(map(str, choices))} (got {value!r})"]
+                return [f"must be one of {', '.join(map(str, choices))} (got {shown(value)})"]
             return []
         if kind == "point":
             vals = list(value) if isinstance(value, (tuple, list, np.ndarray)) else None
             if vals is None or len(vals) != len(self.default) or not all(_finite(v) for v in vals):
-                return [f"must be {len(self.default)} finite numbers (got {value!r})"]
+                return [f"must be {len(self.default)} finite numbers (got {shown(value)})"]
             return []
         if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
-            return [self._expected(value, f"must be {'an integer' if kind is int else 'a number'} (got {value!r})")]
+            return [self._expected(value, f"must be {'an integer' if kind is int else 'a number'} (got {shown(value)})")]
         if choices is not None:
-            return [] if value in choices else [f"must be one of {', '.join(map(str, choices))} (got {value!r})"]
+            return [] if value in choices else [f"must be one of {', '.join(map(str, choices))} (got {shown(value)})"]
         if kind is int and not float(value).is_integer():
-            return [self._expected(value, f"must be an integer (got {value!r})")]
+            return [self._expected(value, f"must be an integer (got {shown(value)})")]
         unit = f" {self.unit}" if self.unit not in ("-", "") else ""
         if self.high_note and self.high is not None and math.isfinite(float(value)) and value > self.high:
             return [f"must be at most {_num(self.high)}{unit} ({self.high_note}) (got {_num(float(value))})"]
@@ -135,7 +135,7 @@ class Param:
         return []
 
     def _expected(self, value: Any, otherwise: str) -> str:
-        return f"must be {self.expect} (got {value!r})" if self.expect else otherwise
+        return f"must be {self.expect} (got {shown(value)})" if self.expect else otherwise
 
     def convert(self, value: Any) -> Any:
         """``value`` in the declared type (after :meth:`check`)."""
@@ -212,7 +212,7 @@ class RunOption(Param):
             return list(self.validate(value, label))
         choices = self.allowed()
         if self.noun is not None and value is not None and choices is not None and value not in choices:
-            return [f"unknown {self.noun} {value!r}; choose one of {', '.join(map(str, choices))}"]
+            return [f"unknown {self.noun} {shown(value)}; choose one of {', '.join(map(str, choices))}"]
         return super().check(value, label)
 
     def parse(self, text: str) -> Any:

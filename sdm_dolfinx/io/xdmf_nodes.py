@@ -44,7 +44,7 @@ def output_nodes(msh, w_degree):
     The mesh's own nodes, unless the mesh is affine (geometry degree 1), a simplex one, and the
     displacement is P2: then :class:`EdgeNodes` (P2 values at the mid-edge nodes).
     """
-    degree = int(msh.geometry.cmap.degree)
+    degree = compat.geometry_degree(msh)
     if degree == 1 and w_degree == 2 and compat.cell_name(msh) in _VTK_EDGES:
         return EdgeNodes(msh)
     return NodeOrder(msh)
@@ -104,7 +104,7 @@ class NodeOrder(_Order):
         perm = np.argsort(np.asarray(perm_vtk(msh.topology.cell_type, nodes)))
         self.gdm, self.nodes = gdm, nodes
         self.cell_name = compat.cell_name(msh)
-        self.degree = int(geo.cmap.degree)
+        self.degree = compat.geometry_degree(msh)
         key = (self.cell_name, self.degree)
         if key not in _XDMF_CELLS:
             raise NotImplementedError(f"XDMF output of {self.cell_name} cells of degree {self.degree}")

@@ -303,7 +303,7 @@ class Discretisation:
         ``cverts`` is -1 and ``c_vertex`` False at a dof that is not a vertex's; ``q1_of_c`` keeps the Q1 dofs
         of the vertex ones (``values[c_vertex]`` go there)."""
         W, msh = self.W, self.problem.mesh
-        if not any(W.dofmap.dof_layout.num_entity_dofs(k) for k in range(1, msh.topology.dim)):
+        if not any(compat.num_entity_dofs(W, k) for k in range(1, msh.topology.dim)):
             raise DiscretisationError(
                 f"constrain='nodes' is constrain='vertices' for pair {self.pair.name} on {compat.cell_name(msh)} "
                 f"meshes: W^h has no dof on the constrained boundary but at its vertices; use constrain='vertices'")

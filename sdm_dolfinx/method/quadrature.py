@@ -81,7 +81,7 @@ def parse(text: str) -> Optional[Union[int, str]]:
 def is_affine(msh):
     """True when every cell of ``msh`` is an affine image of the reference cell: a simplex with
     a degree-1 geometry (P2 geometry, quadrilaterals and hexahedra are not)."""
-    return compat.cell_name(msh) in SIMPLICES and msh.geometry.cmap.degree == 1
+    return compat.cell_name(msh) in SIMPLICES and compat.geometry_degree(msh) == 1
 
 
 def estimated_degree(form):

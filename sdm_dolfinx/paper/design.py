@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Optional
 
 from sdm_dolfinx.study.run_spec import PAPER_MESHES, PAPER_TABLE2, Run, config_text  # noqa: F401 (re-exported)
+from sdm_dolfinx.errors import shown
 from sdm_dolfinx.problems.disc_mesh import LEVELS
 from sdm_dolfinx.run import num_steps
 
@@ -48,7 +49,7 @@ def getfem_steps(T, dt):
         ValueError: ``dt`` or ``T`` not positive and finite, or more than 1e7 steps.
     """
     if not (0 < dt < math.inf and 0 < T < math.inf) or T / dt > 1e7:
-        raise ValueError(f"getfem_steps needs 0 < dt, T < inf and T / dt <= 1e7 (got T = {T!r}, dt = {dt!r})")
+        raise ValueError(f"getfem_steps needs 0 < dt, T < inf and T / dt <= 1e7 (got T = {shown(T)}, dt = {shown(dt)})")
     t, n = 0.0, 0
     while t <= T:
         t += dt

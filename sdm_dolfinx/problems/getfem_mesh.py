@@ -19,7 +19,6 @@ from mpi4py import MPI
 
 import numpy as np
 import ufl
-from dolfinx import mesh as dmesh
 
 from sdm_dolfinx import compat
 from sdm_dolfinx.errors import SdmError
@@ -217,4 +216,4 @@ def read(path, shift, comm=MPI.COMM_WORLD, rank=0):
     if err:
         raise GetfemFormatError(err)
     domain = ufl.Mesh(compat.element("Lagrange", "triangle", 2, (2,)))
-    return dmesh.create_mesh(comm, cells, x, domain)
+    return compat.create_mesh(comm, cells, x, domain)

@@ -108,6 +108,14 @@ def _kept_choice(out, linear, comm):
     return chosen, f"auto, kept from the run's start ({info.get('linear_strategy_reason')})"
 
 
+def _factor_package(integ):
+    """The sparse direct solver of the step solver's one factorisation for the run ("cholmod",
+    "mumps" or "petsc": :func:`~sdm_dolfinx.solvers.factorisation.factor_package`, what this PETSc
+    has), or None when its strategy keeps none (``amg``, ``cg-gamg``, ``lu``, SNES VI)."""
+    fac = getattr(getattr(integ, "solver", None), "fac", None)
+    return getattr(fac, "package", None)
+
+
 class _Loop:
     """The state of one run between :func:`simulate`'s phases (set-up, files, steps, end)."""
 
@@ -165,6 +173,7 @@ class _Loop:
                      "solver_options_prefix": getattr(integ.solver, "prefix", None),
                      "linear_strategy": getattr(integ, "linear_strategy", None),
                      "linear_strategy_reason": getattr(integ, "linear_reason", None),
+                     "factor_package": _factor_package(integ),
                      "status": "running", **extra_info}
         self.out, self.restarted, self.first = out, bool(restart), 0
         if out is not None:

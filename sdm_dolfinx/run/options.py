@@ -33,6 +33,7 @@ from sdm_dolfinx.method.pairs import MASS_TREATMENTS, PAIRS, Pair, get_pair
 from sdm_dolfinx.params import Param, RunOption
 from sdm_dolfinx.run.result import num_steps
 from sdm_dolfinx.solvers import LINEAR_STRATEGIES, VI_SOLVERS
+from sdm_dolfinx.solvers.active_set import missing_package
 
 
 class RunInputError(SdmError, ValueError):
@@ -303,6 +304,9 @@ def _rules(o: Mapping[str, Any], label: Mapping[str, str]) -> list[str]:
     if o.get("friction") in _friction.LAWS:
         errors += _friction.check_solver(o.get("friction"), o.get("vi_solver"), o.get("linear"))
     errors += _treatment_solver(o, label)
+    missing = missing_package(o.get("linear"))
+    if missing and o.get("vi_solver") in (None, "ssn"):
+        errors.append(f"{label['linear']} {o['linear']} {missing}")
     return errors
 
 

@@ -5,11 +5,14 @@ are the ways to solve it (see :class:`~sdm_dolfinx.solvers.semismooth.Semismooth
 :class:`InactiveSetSolver` does all but the dense Schur complement
 (:mod:`sdm_dolfinx.solvers.schur`), which falls back to it for large active sets.
 """
+from typing import Optional
+
 from mpi4py import MPI
 from petsc4py import PETSc
 
 import numpy as np
 
+from sdm_dolfinx import compat
 from sdm_dolfinx.solvers import memory
 from sdm_dolfinx.solvers.base import VIError
 from sdm_dolfinx.solvers.factorisation import REDUNDANT_MAX_ROWS, mumps_margins
@@ -17,6 +20,19 @@ from sdm_dolfinx.solvers.options import ksp_reason_name, scoped_options
 
 #: linear strategies of the semi-smooth Newton (see :class:`~sdm_dolfinx.solvers.semismooth.SemismoothNewton`)
 LINEAR_STRATEGIES = ("auto", "schur", "cg-factor", "lu", "amg", "cg-amg", "cg-gamg")
+
+#: the strategies whose preconditioner is hypre's BoomerAMG
+HYPRE_STRATEGIES = ("amg", "cg-amg")
+
+
+def missing_package(linear: object) -> Optional[str]:
+    """Why strategy ``linear`` cannot run when this PETSc lacks the package it needs (hypre for
+    :data:`HYPRE_STRATEGIES`: the PyPI wheel dolfinx-solver-real has none), else None."""
+    if linear in HYPRE_STRATEGIES and not compat.petsc_has("hypre"):
+        return ("needs hypre's BoomerAMG, and this PETSc has no hypre: choose cg-gamg (PETSc's own "
+                "algebraic multigrid), schur or cg-factor")
+    return None
+
 
 #: ``auto`` takes ``schur`` up to this many constrained dofs, ``amg`` beyond: many
 #: constraints (the membrane, N_g ~ N^2) mean active sets of thousands in the impact phase,
@@ -43,7 +59,7 @@ PMAT, PRODUCT = "sdm_gamg_pmat", "sdm_fast_product"
 def choose_strategy(num_constraints, spd, n=None, dim=2, comm=None, explain=False):
     """What ``linear="auto"`` means (``explain``: also the one-line reason).
 
-    ``schur``, or ``amg`` for many constraints (SPD only); in 3-D (``dim`` 3, ``n`` = dim W^h)
+    ``schur``, or ``amg`` for many constraints (SPD only; ``schur`` where PETSc has no hypre); in 3-D (``dim`` 3, ``n`` = dim W^h)
     ``cg-gamg`` when the factorised run's memory (:func:`~sdm_dolfinx.solvers.memory.run_bytes`,
     a fit of measured peak RSS) exceeds MEMORY_MARGIN of the memory available per rank
     (MemAvailable / ranks on the node): the iterative strategy is several times slower per step
@@ -52,6 +68,8 @@ def choose_strategy(num_constraints, spd, n=None, dim=2, comm=None, explain=Fals
     name = "schur" if num_constraints <= SCHUR_MAX_CONSTRAINTS or not spd else "amg"
     why = (f"{num_constraints} constrained dofs {'<=' if name == 'schur' else '>'} {SCHUR_MAX_CONSTRAINTS}"
            if spd else "K is not SPD")
+    if name == "amg" and missing_package(name):
+        name, why = "schur", f"{why}, but this PETSc has no hypre for amg"
     need = memory.run_bytes(n, dim) if (spd and n is not None) else None
     if need is not None and name == "schur":
         comm = comm or MPI.COMM_WORLD

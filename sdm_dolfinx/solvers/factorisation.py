@@ -1,5 +1,5 @@
-"""One sparse factorisation of the step matrix for the whole run (CHOLMOD or MUMPS), with
-MUMPS's work-space retries.
+"""One sparse factorisation of the step matrix for the whole run (CHOLMOD or MUMPS, whichever
+this PETSc has: :func:`factor_package`), with MUMPS's work-space retries.
 
 :class:`Factorisation` solves x = K^-1 r for one right-hand side or many (the columns
 K^-1 e_i of the Schur strategy), distributed with MUMPS or, for small matrices on several
@@ -16,16 +16,34 @@ from sdm_dolfinx.solvers.base import VIError
 from sdm_dolfinx.solvers.options import scoped_options
 
 
-def factor_package(comm, spd):
-    """The sparse direct solver for one factorisation on ``comm`` (of one process's copy when
-    the factorisation is redundant, see :class:`Factorisation`).
+class FactorPackageError(VIError):
+    """This PETSc has no sparse direct solver for the factorisation asked for (one line)."""
 
-    One rank, SPD: CHOLMOD (supernodal Cholesky), measured 8x faster to factorise and
-    50-100x faster to solve with than MUMPS on the membrane's step matrix (MUMPS's solve
-    phase costs ~1 us per node of its elimination tree, and PORD leaves ~one node per
-    unknown). Otherwise MUMPS (LDL^T for symmetric indefinite, distributed).
+
+def factor_package(serial, spd):
+    """The sparse direct solver this PETSc has for one factorisation, on one process
+    (``serial``: one rank, or one process's copy when the factorisation is redundant, see
+    :class:`Factorisation`) or distributed.
+
+    One process, SPD: CHOLMOD (supernodal Cholesky) where PETSc has SuiteSparse, measured 8x
+    faster to factorise and 50-100x faster to solve with than MUMPS on the membrane's step
+    matrix (MUMPS's solve phase costs ~1 us per node of its elimination tree, and PORD leaves
+    ~one node per unknown; bench/factor_packages.py). Otherwise MUMPS (LDL^T for symmetric
+    indefinite, distributed) where PETSc has it (Debian's PETSc has both; the PyPI wheel
+    dolfinx-solver-real only MUMPS); on one process without either, PETSc's own factorisation.
+    Which packages PETSc has is :func:`sdm_dolfinx.compat.petsc_has`'s answer.
+
+    Raises:
+        FactorPackageError: a distributed factorisation on a PETSc without MUMPS.
     """
-    return "cholmod" if comm.size == 1 and spd else "mumps"
+    if serial and spd and compat.petsc_has("suitesparse"):
+        return "cholmod"
+    if compat.petsc_has("mumps"):
+        return "mumps"
+    if serial:
+        return "petsc"
+    raise FactorPackageError("this PETSc has no MUMPS, the only distributed sparse direct solver this package "
+                             "uses: run on one rank, or with -sdm_factor_redundant 1, or choose --linear cg-gamg")
 
 
 #: MUMPS's ICNTL(14): the percentage by which its work space exceeds the analysis's estimate.
@@ -81,8 +99,9 @@ def factorise(M, comm, prefix, kind="cholesky", package="mumps", agree=None, ret
         if worst in (-8, -9) and attempt < retries:
             continue
         what = f"MUMPS INFOG(1) = {worst}, ICNTL(14) = {pct}" if worst else f"PC failed reason {reason}"
+        instead = "amg" if compat.petsc_has("hypre") else "cg-gamg"
         raise VIError(f"the factorisation of the {M.getSize()[0]}-row step matrix failed ({what}); "
-                      f"see the MUMPS user guide, or choose --linear amg")
+                      f"see the MUMPS user guide, or choose --linear {instead}")
     raise AssertionError("unreachable")
 
 
@@ -138,9 +157,10 @@ class Factorisation:
         size1 = self.redundant or self.comm.size == 1
         if aug is not None:
             M.setOption(PETSc.Mat.Option.SYMMETRIC, True)
-            kind, package = "cholesky", "mumps"     # LDL^T of the symmetric indefinite matrix
+            # LDL^T of the symmetric (quasi-definite) indefinite matrix: not CHOLMOD's
+            kind, package = "cholesky", factor_package(size1, False)
         else:
-            kind, package = ("cholesky" if spd else "lu"), ("cholmod" if size1 and spd else "mumps")
+            kind, package = ("cholesky" if spd else "lu"), factor_package(size1, spd)
         ksp = factorise(M, comm, prefix, kind, package, agree=self.comm)
         self.ksp, self.M = ksp, M
         self.package = ksp.getPC().getFactorSolverType()

@@ -21,11 +21,15 @@ from petsc4py import PETSc
 import numpy as np
 import numpy.typing as npt
 
-from sdm_dolfinx.solvers.active_set import LINEAR_STRATEGIES, InactiveSetSolver, choose_strategy
+from sdm_dolfinx.solvers.active_set import LINEAR_STRATEGIES, InactiveSetSolver, choose_strategy, missing_package
 from sdm_dolfinx.solvers.base import MurtyRule, VIError
 from sdm_dolfinx.solvers.factorisation import Factorisation
 from sdm_dolfinx.solvers.options import instance_prefix, scoped_options, vi_tolerances
 from sdm_dolfinx.solvers.schur import SchurComplement
+
+
+class MissingPackageError(VIError):
+    """The linear strategy asked for needs an external package this PETSc does not have."""
 
 
 class SemismoothNewton:
@@ -77,6 +81,8 @@ class SemismoothNewton:
         self.num_constraints = self.comm.allreduce(len(self.cdofs), op=MPI.SUM)
         if linear == "auto":
             linear = choose_strategy(self.num_constraints, symmetric_positive)
+        if missing_package(linear):
+            raise MissingPackageError(f"linear strategy {linear} {missing_package(linear)}")
         self.prefix, self.options = instance_prefix(self.comm, prefix), dict(options or {})
         self.spd, self.linear = symmetric_positive, linear
         self.factor_matrix = factor_matrix

@@ -19,9 +19,9 @@ from petsc4py import PETSc
 import numpy as np
 import pytest
 import ufl
-import dolfinx.fem.petsc  # noqa: F401  (fem.petsc.LinearProblem)
 from dolfinx import fem, mesh as dmesh
 
+from sdm_dolfinx import compat
 from sdm_dolfinx.method.discretisation import Discretisation
 from sdm_dolfinx.contact.friction import make
 from sdm_dolfinx.run.integrator import Integrator
@@ -76,9 +76,8 @@ def static_start(d, U):
     verts = dmesh.locate_entities(p.mesh, 0, lambda x: np.abs(x[2]) <= 1e-10 * H)
     bc = fem.dirichletbc(np.zeros(3, dtype=PETSc.ScalarType), fem.locate_dofs_topological(W, 0, verts), W)
     u, w = ufl.TrialFunction(W), ufl.TestFunction(W)
-    problem = fem.petsc.LinearProblem(p.a(u, w), p.l(w), bcs=[bc],
-                                      petsc_options={"ksp_type": "preonly", "pc_type": "lu"})
-    us = problem.solve()
+    us = compat.solve_linear_problem(p.a(u, w), p.l(w), [bc], {"ksp_type": "preonly", "pc_type": "lu"},
+                                     "sdm_test_static_")
     U.array[:] = us.x.array[:len(U.array)]
 
 

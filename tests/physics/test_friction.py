@@ -61,7 +61,6 @@ def resting_block(width=20.0, height=10.0, n=10, E=1000.0, nu=0.3, v0=100.0, g=(
 def _static(msh, sigma, eps, gv, bottom):
     """The P2 static displacement under gravity with u_y = 0 at the bottom vertices (the run's
     constraint, bilateral) and u_x = 0 at the bottom-left vertex (the rigid translation)."""
-    from dolfinx.fem.petsc import LinearProblem
     from sdm_dolfinx import compat
     V = compat.function_space(msh, compat.element("Lagrange", compat.cell_name(msh), 2, (2,)))
     u, w = ufl.TrialFunction(V), ufl.TestFunction(V)
@@ -70,8 +69,8 @@ def _static(msh, sigma, eps, gv, bottom):
     zero = PETSc.ScalarType(0.0)
     bcs = [fem.dirichletbc(zero, fem.locate_dofs_topological(V.sub(1), 0, verts), V.sub(1)),
            fem.dirichletbc(zero, fem.locate_dofs_topological(V.sub(0), 0, corner), V.sub(0))]
-    return LinearProblem(ufl.inner(sigma(u), eps(w)) * ufl.dx, RHO * ufl.inner(gv, w) * ufl.dx, bcs=bcs,
-                         petsc_options={"ksp_type": "preonly", "pc_type": "lu"}).solve()
+    return compat.solve_linear_problem(ufl.inner(sigma(u), eps(w)) * ufl.dx, RHO * ufl.inner(gv, w) * ufl.dx, bcs,
+                                       {"ksp_type": "preonly", "pc_type": "lu"}, "sdm_test_static_")
 
 
 def _steps(problem, friction, pair="P2/P1", scheme="midpoint", dt=2e-5, n=60):

@@ -124,10 +124,10 @@ def test_geometry_is_the_curved_disc(name):
     x = x + (0.0, HEIGHT)
     a, b, m, cell = _boundary_arcs(cells)
     # each boundary arc oriented as its cell's boundary runs counter-clockwise
-    sign = np.sign(np.cross(x[cells[cell, 1]] - x[cells[cell, 0]], x[cells[cell, 2]] - x[cells[cell, 0]]))
+    sign = np.sign(cross2(x[cells[cell, 1]] - x[cells[cell, 0]], x[cells[cell, 2]] - x[cells[cell, 0]]))
     half = (x[b] - x[a]) / 2
     curv = (x[a] + x[b]) / 2 - x[m]
-    green = np.sum(sign * (np.cross(x[m], half) + np.cross(half, curv) / 3.0))   # 1/2 closed x cross dx
+    green = np.sum(sign * (cross2(x[m], half) + cross2(half, curv) / 3.0))   # 1/2 closed x cross dx
     assert area == pytest.approx(green, rel=1e-12)
     theta = 2 * np.arcsin(np.hypot(*(x[b] - x[a]).T) / (2 * R))
     expected = np.pi * R ** 2 - R ** 2 * np.sum(_segment_deficit(theta))
@@ -167,6 +167,11 @@ def test_run_agrees_with_the_same_mesh_as_msh(mpi_tmp_path):
         np.testing.assert_allclose(ours[c], gmsh[c], rtol=0, atol=100 * 622 * np.finfo(float).eps * scale, err_msg=c)
 
 
+def cross2(a, b):
+    """The z-component of the cross product of 2-vectors (rows): numpy 2 deprecates np.cross of 2-vectors."""
+    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+
 def _map_points(lines, f):
     """The file's lines with every point (x, y) replaced by f(x, y)."""
     def one(line):
@@ -174,7 +179,7 @@ def _map_points(lines, f):
         if t[:1] != ["POINT"]:
             return line
         x, y = f(float(t[2]), float(t[3]))
-        return f"  POINT  {t[1]}  {x!r}  {y!r}\n"
+        return f"  POINT  {t[1]}  {float(x)!r}  {float(y)!r}\n"     # numpy 2's repr is np.float64(...)
     return "".join(one(line) for line in lines)
 
 

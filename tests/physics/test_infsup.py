@@ -21,7 +21,7 @@ COMM = MPI.COMM_WORLD
 def tiny_mesh(points, cells):
     """A mesh of a few triangles on this rank alone (COMM_SELF: every rank computes the same numbers)."""
     domain = ufl.Mesh(compat.element("Lagrange", "triangle", 1, shape=(2,)))
-    return dmesh.create_mesh(MPI.COMM_SELF, np.array(cells, dtype=np.int64), np.array(points, dtype=float), domain)
+    return compat.create_mesh(MPI.COMM_SELF, np.array(cells, dtype=np.int64), np.array(points, dtype=float), domain)
 
 
 def scalar_problem(msh, constrained):

@@ -101,7 +101,8 @@ def _lumped_masses(s, cells_only):
     own affine mesh (the straight Triangle_6 cells' first three nodes are their vertices)."""
     tri = s.cells[:, :3]
     x = s.points[:, :2][tri]
-    area = 0.5 * np.abs(np.cross(x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]))
+    e1, e2 = x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]
+    area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])     # not np.cross: numpy 2 deprecates 2-vectors
     if cells_only:
         return RHO * area
     c = np.zeros(len(s.points))

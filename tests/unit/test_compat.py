@@ -135,3 +135,33 @@ def test_versions():
     assert v["petsc"] == ".".join(map(str, PETSc.Sys.getVersion()))
     assert compat.DOLFINX_VERSION == tuple(int(p) for p in dolfinx.__version__.split(".")[:2])
     assert all(isinstance(s, str) and s for s in v.values())
+
+
+@pytest.mark.parametrize("kind,dim,expected", [("P1", 1, 0), ("P2", 1, 1), ("P2", 2, 0), ("P1+", 2, 1), ("P1+", 0, 1),
+                                               ("DG0", 2, 1)])
+def test_num_entity_dofs(msh, kind, dim, expected):
+    """Dofs on one entity's interior: P2 one per edge, the bubble one per cell, per block (a 2-vector alike)."""
+    assert compat.num_entity_dofs(make(msh, kind), dim) == expected
+    assert compat.num_entity_dofs(make(msh, kind, (2,)), dim) == expected
+
+
+def test_create_mesh_from_arrays():
+    """Two triangles of the unit square (on each rank alone): area 1, 4 vertices."""
+    domain = ufl.Mesh(compat.element("Lagrange", "triangle", 1, shape=(2,)))
+    x = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    m = compat.create_mesh(MPI.COMM_SELF, np.array([[0, 1, 2], [0, 2, 3]], dtype=np.int64), x, domain)
+    assert m.topology.index_map(0).size_local == 4 and m.topology.index_map(2).size_local == 2
+    one = fem.Constant(m, PETSc.ScalarType(1.0))
+    assert np.isclose(fem.assemble_scalar(compat.form(one * ufl.dx(domain=m))), 1.0, rtol=SUM_RTOL)
+
+
+def test_solve_linear_problem(msh):
+    """The L2 projection of x + 2y into P1 (which holds it) is x + 2y at the dofs, to round-off of LU."""
+    V = make(msh, "P1")
+    u, w = ufl.TrialFunction(V), ufl.TestFunction(V)
+    x = ufl.SpatialCoordinate(msh)
+    uh = compat.solve_linear_problem(ufl.inner(u, w) * ufl.dx, ufl.inner(x[0] + 2 * x[1], w) * ufl.dx, [],
+                                     {"ksp_type": "preonly", "pc_type": "lu"}, "sdm_test_projection_")
+    X = V.tabulate_dof_coordinates()
+    n = V.dofmap.index_map.size_local
+    assert np.allclose(uh.x.array[:n], X[:n, 0] + 2 * X[:n, 1], rtol=0, atol=1e-12 * (LX + 2 * LY))

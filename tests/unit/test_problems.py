@@ -382,3 +382,10 @@ def test_time_that_is_not_a_constant_is_refused(time):
     with pytest.raises(ProblemInputError,
                        match=r"time must be a scalar fem.Constant used by l\(w\) \(got (float|float64)\)"):
         dataclasses.replace(p, time=time)
+
+
+def test_numpy_scalars_in_messages_read_as_numbers():
+    """A numpy scalar given as a value is named in a refusal as the number it holds, on numpy 1
+    and 2 alike (numpy 2's repr is np.float64(2.5))."""
+    assert Param("n", 3, "h").complaints(np.float64(2.5)) == ["must be an integer (got 2.5)"]
+    assert Param("n", 3, "h", choices=(1, 2)).complaints(np.int64(3)) == ["must be one of 1, 2 (got 3)"]

@@ -1,9 +1,9 @@
-"""Everything that differs between dolfinx 0.5 (Debian 12) and dolfinx >= 0.7 (0.9/0.10).
+"""Everything that differs between dolfinx 0.5 (Debian 12) and dolfinx >= 0.7 (0.9/0.10/0.11),
+and between PETSc builds (:mod:`sdm_dolfinx.compat.petsc`, re-exported here).
 
-Only this module may look at ``dolfinx.__version__``; the rest of the package calls
-these helpers, so a port to a new dolfinx touches this file alone.
+Only this package may look at ``dolfinx.__version__``; the rest of the package calls
+these helpers, so a port to a new dolfinx touches this folder alone.
 """
-import ctypes
 from pathlib import Path
 from typing import Any
 
@@ -13,13 +13,18 @@ from petsc4py import PETSc
 import dolfinx
 import numpy as np
 import ufl
-from dolfinx import fem, geometry
+from dolfinx import fem
 
-DOLFINX_VERSION = tuple(int(p) for p in dolfinx.__version__.split(".")[:2])
-NEW_API = DOLFINX_VERSION >= (0, 7)
+from sdm_dolfinx.compat.version import DOLFINX_VERSION, NEW_API
 
 if NEW_API:  # pragma: no cover - exercised only on dolfinx >= 0.7
     import basix.ufl
+
+# re-exported: the rest of the package calls compat.<name>
+from sdm_dolfinx.compat.mesh import (bounding_box_tree, cell_candidates, cell_tree, colliding_cells,  # noqa: F401
+                                     create_mesh, entities_to_geometry, geometry_degree, mesh_geometry_dofmap,
+                                     model_to_mesh)
+from sdm_dolfinx.compat.petsc import pc_failed_reason, petsc_has, petsc_options_used  # noqa: F401
 
 #: a finite element: ufl's (dolfinx 0.5) or basix.ufl's (>= 0.7); neither is annotated
 Element = Any
@@ -157,51 +162,6 @@ def assemble_matrix_block(a, bcs=(), diagonal=1.0):
     return A
 
 
-def model_to_mesh(model, comm, rank, gdim):
-    """gmsh model -> (mesh, cell_tags, facet_tags).
-
-    ``dolfinx.io.gmshio.model_to_mesh`` returns that tuple up to 0.9; 0.10 has
-    ``dolfinx.io.gmsh.model_to_mesh`` returning a ``MeshData``.
-    """
-    if DOLFINX_VERSION >= (0, 10):  # pragma: no cover
-        from dolfinx.io import gmsh as gmsh_io
-        data = gmsh_io.model_to_mesh(model, comm, rank, gdim=gdim)
-        return data.mesh, data.cell_tags, data.facet_tags
-    from dolfinx.io import gmshio
-    msh, ct, ft = gmshio.model_to_mesh(model, comm, rank, gdim=gdim)
-    return msh, ct, ft
-
-
-def bounding_box_tree(msh):
-    """The cells' bounding-box tree of ``msh`` (``BoundingBoxTree`` in 0.5, ``bb_tree`` later)."""
-    if NEW_API:  # pragma: no cover
-        return geometry.bb_tree(msh, msh.topology.dim)
-    return geometry.BoundingBoxTree(msh, msh.topology.dim)
-
-
-def colliding_cells(msh, tree, points):
-    """For each point (rows of an (n, 3) array), the local cells containing it."""
-    if NEW_API:  # pragma: no cover
-        cand = geometry.compute_collisions_points(tree, points)
-    else:
-        cand = geometry.compute_collisions(tree, points)
-    return geometry.compute_colliding_cells(msh, cand, points)
-
-
-def _num_cells(msh):
-    """Local cells, owned and ghost."""
-    imap = msh.topology.index_map(msh.topology.dim)
-    return imap.size_local + imap.num_ghosts
-
-
-def mesh_geometry_dofmap(msh: Any) -> Any:
-    """Cell -> geometry node indices, as a 2-D (num_cells, nodes_per_cell) array."""
-    if NEW_API:  # pragma: no cover
-        return msh.geometry.dofmap
-    nodes = msh.geometry.cmap.create_dof_layout().num_dofs
-    return msh.geometry.dofmap.array.reshape(-1, nodes)          # also with 0 local cells
-
-
 def dofmap_list(V):
     """Cell -> dof (block) indices of V, as a 2-D (num_cells, dofs_per_cell) array.
 
@@ -212,15 +172,39 @@ def dofmap_list(V):
     return V.dofmap.list.array.reshape(-1, V.dofmap.dof_layout.num_dofs)   # also with 0 local cells
 
 
+def num_entity_dofs(V, dim):
+    """The dofs of V's element on one mesh entity of dimension ``dim`` (its interior, not its
+    closure; per block).
+
+    0.5-0.10: ``ElementDofLayout.num_entity_dofs(dim)``; 0.11 removed it (python/dolfinx/wrappers/
+    fem.cpp at v0.11.0): the length of ``entity_dofs(dim, 0)``, the same for every entity of a
+    dimension on a mesh of one cell type.
+    """
+    layout = V.dofmap.dof_layout
+    if DOLFINX_VERSION >= (0, 11):  # pragma: no cover
+        return len(layout.entity_dofs(dim, 0))
+    return layout.num_entity_dofs(dim)
+
+
+def solve_linear_problem(a, L, bcs, petsc_options, prefix):
+    """Solve the linear variational problem a(u, w) = L(w) with Dirichlet ``bcs`` by
+    ``dolfinx.fem.petsc.LinearProblem`` (its options under ``prefix``, e.g. "sdm_static_");
+    returns the solution Function.
+
+    0.10 and 0.11 require the keyword ``petsc_options_prefix`` (python/dolfinx/fem/petsc.py at
+    v0.10.0, v0.11.0); 0.5-0.9 have no such argument (their prefix is chosen by dolfinx).
+    """
+    LinearProblem = petsc_module().LinearProblem
+    if DOLFINX_VERSION >= (0, 10):  # pragma: no cover
+        problem = LinearProblem(a, L, bcs=list(bcs), petsc_options=petsc_options, petsc_options_prefix=prefix)
+    else:
+        problem = LinearProblem(a, L, bcs=list(bcs), petsc_options=petsc_options)
+    return problem.solve()
+
+
 def trapezoid(y, x):
     """The trapezoidal rule: ``numpy.trapezoid`` (numpy >= 2; Debian 13) or ``numpy.trapz``."""
     return (np.trapezoid if hasattr(np, "trapezoid") else np.trapz)(y, x)
-
-
-def pc_failed_reason(pc):
-    """``PC.getFailedReason()`` (petsc4py >= 3.20), or 0 on older petsc4py: MUMPS reports
-    its failures through INFOG(1) on every version."""
-    return int(pc.getFailedReason()) if hasattr(pc, "getFailedReason") else 0
 
 
 def interpolation_points(V):
@@ -228,15 +212,6 @@ def interpolation_points(V):
     0.5, a property on newer versions."""
     points = V.element.interpolation_points
     return points() if callable(points) else points
-
-
-def entities_to_geometry(msh, dim, entities):
-    """Geometry node indices of mesh entities."""
-    if NEW_API:  # pragma: no cover
-        from dolfinx import mesh as dmesh
-        return dmesh.entities_to_geometry(msh, dim, entities, False)
-    from dolfinx import cpp
-    return cpp.mesh.entities_to_geometry(getattr(msh, "_mesh", msh), dim, entities, False)
 
 
 class _XDMFFile:
@@ -258,7 +233,7 @@ class _XDMFFile:
     def write_function(self, u, t=0.0):
         V = u.function_space
         elem = V.ufl_element()
-        degree = V.mesh.geometry.cmap.degree
+        degree = geometry_degree(V.mesh)
         if elem.embedded_superdegree == degree or (elem.embedded_superdegree == 0 and elem.discontinuous):
             self._file.write_function(u, t)
             return
@@ -317,22 +292,6 @@ def versions():
             "mpi": MPI.Get_library_version().splitlines()[0].rstrip("\x00").strip()}
 
 
-def cell_tree(msh, cells, padding=0.0):
-    """A bounding-box tree of the given local cells, each box grown by ``padding``."""
-    tdim = msh.topology.dim
-    cells = np.asarray(cells, dtype=np.int32)
-    if NEW_API:  # pragma: no cover
-        return geometry.bb_tree(msh, tdim, entities=cells, padding=padding)
-    return geometry.BoundingBoxTree(msh, tdim, cells, padding)
-
-
-def cell_candidates(tree, points):
-    """For each point (rows of an (n, 3) array), the cells whose (padded) box contains it."""
-    if NEW_API:  # pragma: no cover
-        return geometry.compute_collisions_points(tree, points)
-    return geometry.compute_collisions(tree, points)
-
-
 def interpolate_nonmatching(u_to, u_from, padding=1e-8):
     """Interpolate ``u_from`` into ``u_to``'s space with dolfinx's own non-matching mesh
     interpolation (same communicator, any partitions; points up to ``padding`` outside the
@@ -368,26 +327,3 @@ def vtk_mesh(V):
     if hasattr(plot, "vtk_mesh"):  # pragma: no cover
         return plot.vtk_mesh(V)
     return plot.create_vtk_mesh(V)
-
-
-_options_used: list[Any] = []      # [PetscOptionsUsed wrapper or None], found on first use
-
-
-def petsc_options_used(name):
-    """Whether PETSc has read the option ``name`` (no dash); None where that cannot be asked.
-
-    petsc4py (3.18 at least) does not wrap PetscOptionsUsed: it is called through ctypes in
-    libpetsc, which petsc4py's extension links."""
-    if not _options_used:
-        try:
-            f = ctypes.CDLL(PETSc.__file__).PetscOptionsUsed
-            f.argtypes = [ctypes.c_void_p, ctypes.c_char_p, ctypes.POINTER(ctypes.c_int)]
-            f.restype = ctypes.c_int
-        except (OSError, AttributeError):
-            f = None
-        _options_used.append(f)
-    f = _options_used[0]
-    if f is None:
-        return None
-    flag = ctypes.c_int(0)
-    return f(None, name.encode(), ctypes.byref(flag)) == 0 and bool(flag.value)
