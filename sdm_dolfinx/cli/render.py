@@ -97,8 +97,11 @@ def main(argv=None, comm=MPI.COMM_WORLD):
     if comm.rank != 0:
         return 0
     src, series = checked["src"], checked["series"]
-    if series is not None:
-        render.obstacle_of(series)           # built once, before anything is written (a warning if unknown)
+    if series is not None:               # built before anything is written (a warning if unknown)
+        if args.png:
+            render.obstacle_of(series, render.check_time(series, args.time))
+        if args.gif:
+            render.obstacle_of(series)
     if args.merge:
         print(f"wrote {render.merge_xdmf(src)}")
     if args.png:

@@ -4,7 +4,7 @@ at the vertex dofs of P1+, point values are the interpolant's coefficients)."""
 from mpi4py import MPI
 
 import numpy as np
-from dolfinx import fem
+from dolfinx import fem, mesh as dmesh
 
 from sdm_dolfinx.errors import SdmError
 from sdm_dolfinx.method import problem_data
@@ -42,6 +42,7 @@ def setup(d):
         d.g.x.array[d.ddofs] = gfun.x.array[d.ddofs]
     if p.dirichlet_parts:
         locate(d)
+        problem_data.refuse(p, d.comm, _contact_refusal(d))
     d.g.x.scatter_forward()
     if np.intersect1d(d.ddofs, d.cdofs).size:
         # a Dirichlet dof is fixed anyway: drop it from the constraint set
@@ -50,6 +51,20 @@ def setup(d):
         d.cmeasure, d.q1_of_c, d.cx = d.cmeasure[keep], d.q1_of_c[keep], d.cx[:, keep]
     # collective on every rank (a rank without such a dof must not skip it: deadlock)
     d.num_constraints = d.comm.allreduce(len(d.cdofs), op=MPI.SUM)
+
+
+def _contact_refusal(d):
+    """Why the Dirichlet parts cannot be taken with the constraint, or None (collective): a part that
+    prescribes a constrained dof would switch the contact off there (``dirichlet_facets`` keeps
+    that older behaviour: a fixed dof leaves the constraint set), however its data compare with
+    the bound."""
+    for part, dofs in zip(d.problem.dirichlet_parts, d.part_dofs):
+        n = d.comm.allreduce(int(np.intersect1d(dofs, d.cdofs).size), op=MPI.SUM)
+        if n:
+            return (f"Dirichlet part {part.name!r} prescribes the constrained component at {n} constrained points, "
+                    f"where it would switch the contact off: leave the contact boundary out of the part (or "
+                    f"prescribe only its other components)")
+    return None
 
 
 def locate(d):
@@ -62,10 +77,16 @@ def locate(d):
     msh.topology.create_connectivity(fdim, msh.topology.dim)
     nowned = W.dofmap.index_map.size_local
     taken, wrong = d.ddofs, None
+    fmap = msh.topology.index_map(fdim)
+    exterior = dmesh.exterior_facet_indices(msh.topology)           # owned facets with one cell
     for part in p.dirichlet_parts:
         facets = np.asarray(part.facets(msh))
         if facets.size and not np.issubdtype(facets.dtype, np.integer):
             wrong = wrong or f"Dirichlet part {part.name!r}: facets returned {facets.dtype} values, not facet indices"
+            facets = np.zeros(0, dtype=np.int32)
+        refused = _facets_refusal(part.name, facets.reshape(-1), fmap, exterior, d.comm)   # collective: always
+        wrong = wrong or refused
+        if facets.size and (facets.min() < 0 or facets.max() >= fmap.size_local + fmap.num_ghosts):
             facets = np.zeros(0, dtype=np.int32)
         blocks = fem.locate_dofs_topological(W, fdim, facets.astype(np.int32).reshape(-1))
         blocks = np.sort(blocks[blocks < nowned]).astype(np.int64)
@@ -85,6 +106,26 @@ def locate(d):
     for k in range(len(p.dirichlet_parts)):
         d.g.x.array[d.part_dofs[k]] = d.part_values(k, 0.0)
     d.ddofs = np.asarray(taken, dtype=np.int32)
+
+
+def _facets_refusal(name, facets, fmap, exterior, comm):
+    """Why Dirichlet part ``name``'s ``facets`` cannot be its facets, or None (collective): none on any
+    rank (a locator that matches nothing would prescribe nothing, silently), indices out of range, or
+    owned facets that are not on the boundary (vertex indices given for facet indices, say: they
+    would prescribe arbitrary facets)."""
+    nall = fmap.size_local + fmap.num_ghosts
+    out = int(np.count_nonzero((facets < 0) | (facets >= nall)))
+    owned = facets[(facets >= 0) & (facets < fmap.size_local)]
+    inner = int(np.count_nonzero(~np.isin(owned, exterior)))
+    total, out, inner = (comm.allreduce(v, op=MPI.SUM) for v in (int(facets.size), out, inner))
+    if not total:
+        return (f"Dirichlet part {name!r}: facets(mesh) returned no facet on any rank (it would prescribe "
+                f"nothing): check its locator")
+    if out or inner:
+        return (f"Dirichlet part {name!r}: {out + inner} of the {total} indices facets(mesh) returned are not "
+                f"boundary facets ({out} out of range, {inner} inside the body): facets must return facet indices "
+                f"on the boundary, e.g. locate_entities_boundary(mesh, tdim - 1, where), not vertex indices")
+    return None
 
 
 def part_values(d, k, t, rate=False):

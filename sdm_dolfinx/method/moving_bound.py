@@ -32,8 +32,8 @@ def refusal(discretisation, scheme, contact):
         return None
     name = discretisation.problem.name
     if scheme.bound_weight is None:
-        return (f"problem {name!r} has a moving bound, and scheme {scheme.name!r} does not say at which time it "
-                f"imposes it (Scheme.bound_weight): use the midpoint or backward-euler scheme")
+        return (f"problem {name!r} has a moving bound (moving_bound=True), which scheme {scheme.name!r} does not "
+                f"take: use the midpoint or backward-euler scheme")
     if contact != "exact":
         return (f"problem {name!r} has a moving bound, which contact {contact!r} does not take (it evaluates the "
                 f"bound once): use contact 'exact'")

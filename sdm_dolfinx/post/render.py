@@ -181,17 +181,27 @@ class Look:
 
 def obstacle_of(series, time=None):
     """The obstacle the run's problem declares (:mod:`.render_obstacle`; a moving one where it is at
-    ``time``, the picture's), computed once per Series; a :class:`RenderWarning` says why when it
-    cannot be known (it is then not drawn)."""
-    if getattr(series, "obstacle", None) is None:
+    ``time``, the picture's), computed once per Series (a moving one once per time), unless one was
+    given (``series.obstacle``); a :class:`RenderWarning` says why when it cannot be known (it is
+    then not drawn)."""
+    given = getattr(series, "obstacle", None)
+    if given is not None:
+        return given
+    cache = getattr(series, "obstacles", None)
+    if cache is None:
+        cache = series.obstacles = {}
+    key = "fixed" if "fixed" in cache else time
+    if key not in cache:
         if not __package__:
             return {"unknown": "the obstacle is computed by the package (dolfinx), not in this process"}
         import warnings
         from sdm_dolfinx.post.render_obstacle import declared_obstacle
-        series.obstacle = declared_obstacle(series.run, time)
-        if "unknown" in series.obstacle:
-            warnings.warn(f"the obstacle is not drawn: {series.obstacle['unknown']}", RenderWarning, stacklevel=3)
-    return series.obstacle
+        found = declared_obstacle(series.run, time)
+        key = time if found.get("moving") else "fixed"
+        cache[key] = found
+        if "unknown" in found:
+            warnings.warn(f"the obstacle is not drawn: {found['unknown']}", RenderWarning, stacklevel=3)
+    return cache[key]
 
 
 # ------------------------------------------------------------------------ checks

@@ -74,7 +74,7 @@ def _evaluate(problem, vertices_of_run, time=None):
     moving = getattr(problem, "moving_bound", False)
     if moving and time is None:
         return {"unknown": f"problem {problem.name!r}'s obstacle moves, and an animation draws none (its position "
-                           f"per step: the column obstacle_probe)"}
+                           f"per step: the column obstacle_probe)", "moving": True}
     x = vertex_coordinates(msh, verts)                           # (3, n)
     bound = np.asarray(bound_at(problem, x, 0.0 if time is None else float(time)), dtype=float).reshape(-1)
     c = problem.constraint_component if problem.shape else None
@@ -93,4 +93,5 @@ def _evaluate(problem, vertices_of_run, time=None):
         note = f"grey: the obstacle through its {len(verts)} points"
     if moving:
         note += f" at t = {float(time):.4g} (it moves)"
-    return {"component": None if c is None else int(c), "flat": flat, "points": points.tolist(), "note": note}
+    return {"component": None if c is None else int(c), "flat": flat, "points": points.tolist(), "note": note,
+            "moving": bool(moving)}

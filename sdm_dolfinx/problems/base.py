@@ -174,7 +174,9 @@ class Problem:
         elif comp not in (None, 0):
             raise ProblemInputError(f"problem {self.name!r}: a scalar problem has no component {comp!r}; "
                                     f"leave constraint_component at None")
-        if isinstance(self.u0, str) and self.u0 != EQUILIBRIUM:
+        if (isinstance(self.u0, str) and self.u0 != EQUILIBRIUM) or not (isinstance(self.u0, str)
+                                                                         or callable(self.u0)
+                                                                         or hasattr(self.u0, "function_space")):
             raise ProblemInputError(f"problem {self.name!r}: u0 must be x -> values, a dolfinx Function or "
                                     f"{EQUILIBRIUM!r} (the static equilibrium), not {self.u0!r}")
         unknown = [c for c in self.extra_columns if c not in EXTRA_COLUMNS]

@@ -77,11 +77,16 @@ class DirichletPart:
         n = x.shape[1]
         full = (shape[0], n) if shape else (1, n)
         f = self.velocity if rate else self.value
-        v = np.asarray(0.0 if f is None else f(x, t), dtype=float)
+        what = "velocity" if rate else "value"
+        try:
+            v = np.asarray(0.0 if f is None else f(x, t), dtype=float)
+        except TypeError as e:              # value(x) for value(x, t), most often: say which part, in one line
+            raise ProblemInputError(f"Dirichlet part {self.name!r}: {what}(x, t) failed ({e}); it takes the points x "
+                                    f"(3, n) and the time t") from None
         try:
             v = np.broadcast_to(v if shape else v.reshape((1,) + v.shape) if v.ndim else v, full)
         except ValueError:
-            raise ProblemInputError(f"Dirichlet part {self.name!r}: {'velocity' if rate else 'value'}(x, t) returned "
+            raise ProblemInputError(f"Dirichlet part {self.name!r}: {what}(x, t) returned "
                                     f"shape {v.shape} for x of "
                                     f"shape {x.shape}; it must broadcast to {full if shape else (n,)}") from None
         return v

@@ -15,6 +15,38 @@ from mpi4py import MPI
 
 import numpy as np
 
+from sdm_dolfinx.method import problem_data
+
+
+#: a part's start velocity differs from the rate of its data at t = 0 when they differ by more than
+#: this times the larger of the two (and of the first difference quotient): a forgotten ``velocity``
+#: gives 1, data starting at rest about dt times the ratio of their third and second derivatives
+#: (the second-order one-sided difference against the first quotient, both O(dt) then)
+START_VELOCITY_RTOL = 0.1
+
+
+def start_velocity_refusal(d, dt):
+    """Why a Dirichlet part's ``velocity(x, 0)`` (0 when not given) cannot be the rate of its data at
+    t = 0, or None (collective). The rate is (-3 u_D(0) + 4 u_D(dt) - u_D(2 dt)) / (2 dt), exact to
+    O(dt^2); a part's velocity that is not its data's rate makes the midpoint rule's V^{n+1} =
+    2 (U^{n+1} - U^n)/dt - V^n alternate from step to step, and the body feels it through the mass
+    (a sine pushed without ``velocity``: energy off by half)."""
+    for k, part in enumerate(d.problem.dirichlet_parts):
+        u0, u1, u2 = (d.part_values(k, i * dt) for i in range(3))
+        given = d.part_values(k, 0.0, rate=True)
+        rate = (-3.0 * u0 + 4.0 * u1 - u2) / (2.0 * dt)
+        ext = np.array([np.max(np.abs(rate - given), initial=0.0),
+                        np.max(np.abs(rate), initial=0.0), np.max(np.abs(given), initial=0.0),
+                        np.max(np.abs(u1 - u0), initial=0.0) / dt, np.max(np.abs(u0), initial=0.0) / dt])
+        d.comm.Allreduce(MPI.IN_PLACE, ext, op=MPI.MAX)
+        off, scale = ext[0], max(ext[1], ext[2], ext[3])
+        if off > START_VELOCITY_RTOL * scale + 1e-12 * ext[4]:
+            said = "not given (0: at rest)" if part.velocity is None else f"up to {ext[2]:.3g}"
+            return (f"Dirichlet part {part.name!r}: its data move at t = 0 at up to {ext[1]:.3g} per unit time (from "
+                    f"u_D at 0, dt and 2 dt), but its velocity(x, 0) is {said}, {off:.3g} apart: give velocity = "
+                    f"du_D/dt")
+    return None
+
 
 class Prescribed:
     """The Dirichlet parts of one Integrator's run (its hooks are called by the Integrator)."""
@@ -46,6 +78,7 @@ class Prescribed:
         shape = tuple(d.problem.shape)
         #: the (part index, component) of each reaction, in the order of the time series' columns
         self.reaction_keys = [(k, c) for k, part in enumerate(d.problem.dirichlet_parts) for c in part.axes(shape)]
+        problem_data.refuse(d.problem, d.comm, start_velocity_refusal(d, integ.dt))
 
     def lift(self, integ, U, t):
         """The parts' values of the constrained iterate for the step from ``t`` (the scheme's

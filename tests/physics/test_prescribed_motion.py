@@ -200,6 +200,49 @@ def test_bad_parts_are_refused_in_one_line():
         simulate(shaken_bar([DirichletPart("a", left, lambda x, t: np.zeros((3, x.shape[1])))]), dt=0.01, T=0.02)
 
 
+def test_parts_that_would_give_a_wrong_run_are_refused_in_one_line():
+    """Inputs a new user wrote that ran and gave a plausible wrong run: a part on the contact face
+    (it switched the contact off there, the face pushed below the foundation), facets(mesh) that
+    matched nothing (the punch never moved) or returned vertex indices (arbitrary facets moved), a
+    sine pushed without ``velocity`` (energy off by half: the part's velocity alternates), value(x)
+    for value(x, t) (an internal error), and u0 = None (an internal error). Each is now refused in
+    one line naming the part; the same sine with its velocity, and data starting at rest without
+    one (1 - cos), run."""
+    left = lambda m: dmesh.locate_entities_boundary(m, 1, lambda x: np.isclose(x[0], 0.0))   # noqa: E731
+    right = lambda m: dmesh.locate_entities_boundary(m, 1, lambda x: np.isclose(x[0], LENGTH))   # noqa: E731
+    clamp = DirichletPart("left", left, lambda x, t: 0.0)
+    block = load_file(str(PUSHED)).problem()
+    bottom = lambda m: dmesh.locate_entities_boundary(m, 1, lambda x: np.isclose(x[1], 0.0))   # noqa: E731
+    block.dirichlet_parts = [DirichletPart("bottom", bottom, lambda x, t: -1e-3 * t, components=(1,))]
+    with pytest.raises(DiscretisationError, match=r"part 'bottom' prescribes the constrained component at \d+ "
+                                                  r"constrained points, where it would switch the contact off"):
+        simulate(block, dt=1e-4, T=2e-4)
+    block.dirichlet_parts = [DirichletPart("bottom", bottom, lambda x, t: 0.0, components=(0,))]   # tangential: fine
+    simulate(block, dt=1e-4, T=2e-4)
+    nothing = lambda m: dmesh.locate_entities_boundary(m, 1, lambda x: np.isclose(x[0], -1.0))   # noqa: E731
+    with pytest.raises(DiscretisationError, match="part 'top': facets.mesh. returned no facet on any rank"):
+        simulate(shaken_bar([clamp, DirichletPart("top", nothing, lambda x, t: 0.0)]), dt=0.01, T=0.02)
+    vertices = lambda m: dmesh.locate_entities_boundary(m, 0, lambda x: np.isclose(x[0], LENGTH))   # noqa: E731
+    with pytest.raises(DiscretisationError, match=r"part 'right': \d+ of the \d+ indices .* are not boundary facets"):
+        simulate(shaken_bar([clamp, DirichletPart("right", vertices, lambda x, t: 0.0)]), dt=0.01, T=0.02)
+    sine = lambda x, t: AMP * np.sin(OMEGA * t)     # noqa: E731
+    with pytest.raises(DiscretisationError, match=r"part 'right': its data move at t = 0 .* velocity\(x, 0\) is not "
+                                                  r"given"):
+        simulate(shaken_bar([clamp, DirichletPart("right", right, sine, components=(0,))]), dt=0.01, T=0.02)
+    with pytest.raises(DiscretisationError, match=r"velocity\(x, 0\) is up to 0.0942"):     # half the rate
+        simulate(shaken_bar([clamp, DirichletPart("right", right, sine, components=(0,),
+                                                  velocity=lambda x, t: 0.5 * AMP * OMEGA)]), dt=0.01, T=0.02)
+    simulate(shaken_bar([clamp, DirichletPart("right", right, lambda x, t: AMP * (1 - np.cos(OMEGA * t)),
+                                              components=(0,))]), dt=0.01, T=0.02)
+    with pytest.raises(DiscretisationError, match=r"part 'right': value\(x, t\) failed .* takes the points x"):
+        simulate(shaken_bar([clamp, DirichletPart("right", right, lambda x: 0.0)]), dt=0.01, T=0.02)
+    with pytest.raises(ProblemInputError, match="u0 must be x -> values, a dolfinx Function or 'equilibrium'"):
+        bar = shaken_bar()
+        Problem(**{**{f: getattr(bar, f) for f in ("name", "mesh", "shape", "a", "l", "v0", "constraint_vertices",
+                                                    "lower_bound", "constraint_component", "constraint_measure")},
+                   "u0": None})
+
+
 @pytest.mark.skipif(COMM.size > 1, reason="serial: the command runs in a process of its own")
 def test_command_line_runs_the_problem_file_and_refuses_newmark(tmp_path):
     """From the command line and a TOML configuration: the reaction columns in timeseries.csv; a
