@@ -12,6 +12,8 @@ boundary's dofs): between steps the bounds are those of the state (gaps, the nex
 returns the step's obstacle work sum_i lam_i (g_i(t_{n+1}) - g_i(t_n)). Why that work, and why the
 mean of the bounds for the midpoint scheme: :mod:`sdm_dolfinx.schemes.midpoint`.
 """
+from typing import Any
+
 from mpi4py import MPI
 
 import numpy as np
@@ -20,7 +22,7 @@ from sdm_dolfinx.method import problem_data
 from sdm_dolfinx.method.errors import DiscretisationError
 
 
-def moves(discretisation):
+def moves(discretisation: Any) -> bool:
     """The discretisation's Problem declares a moving bound, and it constrains something."""
     return bool(getattr(discretisation.problem, "moving_bound", False)) and discretisation.num_constraints > 0
 

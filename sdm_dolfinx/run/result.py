@@ -13,7 +13,7 @@ import numpy.typing as npt
 
 from sdm_dolfinx.contact import friction as _friction
 from sdm_dolfinx.errors import StepError
-from sdm_dolfinx.method import gaps
+from sdm_dolfinx.method import gaps, moving_bound
 
 if TYPE_CHECKING:
     from dolfinx import fem
@@ -159,10 +159,11 @@ class TimeSeries:
         boundary = (BOUNDARY_GAP,) if d.num_boundary_dofs else ()
         friction_cols = friction_columns(problem) if friction else ()
         contact = (CONTACT_ENERGY,) if contact_energy else ()
-        self.reaction_columns = dirichlet_columns(problem)[:-1]
-        obstacle = OBSTACLE_COLUMNS if getattr(problem, "moving_bound", False) and d.num_constraints else ()
+        dirichlet = dirichlet_columns(problem)
+        self.reaction_columns = dirichlet[:-1]
+        obstacle = OBSTACLE_COLUMNS if moving_bound.moves(d) else ()
         self.columns: tuple[str, ...] = (BASE_COLUMNS + contact + tuple(problem.extra_columns) + friction_cols
-                                         + boundary + dirichlet_columns(problem) + obstacle)
+                                         + boundary + dirichlet + obstacle)
         self.data = {c: np.zeros(nsteps + 1) for c in self.columns}
         self.comm = problem.mesh.comm
         if boundary:
