@@ -15,6 +15,7 @@ from sdm_dolfinx import compat
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.method.frozen import FrozenData
 from sdm_dolfinx.method import dirichlet as _parts, equilibrium, masses, problem_data, quadrature
+from sdm_dolfinx.method.obstacle_rows import ObstacleRows
 from sdm_dolfinx.method.pairs import MASS_TREATMENTS, get_pair
 
 #: an initial displacement below the bound by more than this times max(1, max |bound|) at a
@@ -118,6 +119,8 @@ class Discretisation:
         self.c_vertex = np.ones(len(self.cdofs), dtype=bool)      # which constrained dofs are vertex dofs
         if constrain == "nodes":
             self._nodes()
+        #: the gap rows against the Problem's rigid obstacles (:mod:`.obstacle_rows`), or None
+        self.obstacle_rows = ObstacleRows(self) if problem.obstacles else None
         if self.mass in masses.MODIFIED:
             consistent, self.M = self.M, masses.build(self)
             consistent.destroy()
@@ -358,8 +361,12 @@ class Discretisation:
     def _check_initial(self, U):
         """DiscretisationError when U0 is below the bound at constrained vertices (beyond INITIAL_TOL)."""
         comm = self.comm
-        gap = U.array[self.cdofs] - self.lb
-        scale = max(comm.allreduce(float(np.max(np.abs(self.lb), initial=0.0)), op=MPI.MAX), 1.0)
+        if self.obstacle_rows is not None:
+            gap, scale = self.obstacle_rows.phi(U.array_r, 0.0), self._diameter()
+        else:
+            gap = U.array[self.cdofs] - self.lb
+            scale = None
+        scale = scale or max(comm.allreduce(float(np.max(np.abs(self.lb), initial=0.0)), op=MPI.MAX), 1.0)
         tol = INITIAL_TOL * scale
         count = comm.allreduce(int(np.sum(gap < -tol)), op=MPI.SUM)
         if not count:
@@ -368,11 +375,19 @@ class Discretisation:
         worst, owner = comm.allreduce((float(gap[k]) if k >= 0 else np.inf, comm.rank), op=MPI.MINLOC)
         x = comm.bcast(self.cx[:, k] if comm.rank == owner else None, root=owner)
         where = ", ".join(f"{c:.6g}" for c in x[:self.problem.mesh.geometry.dim])
+        where_to = "inside an obstacle" if self.obstacle_rows is not None else "below the bound"
         raise DiscretisationError(
-            f"problem {self.problem.name!r}: the initial displacement is below the bound at {count} constrained "
+            f"problem {self.problem.name!r}: the initial displacement is {where_to} at {count} constrained "
             f"{'vertices' if self.constrain == 'vertices' else 'nodes'}, by up to {-worst:.3g} at ({where}) (tolerance "
             f"{tol:.1e}); u0 must satisfy the constraint"
             + ("" if self.constrain == "vertices" else " at every constrained node (constrain nodes)"))
+
+    def _diameter(self):
+        """The mesh's largest extent along an axis (collective): the scale of an obstacle's gap tolerance."""
+        x = self.problem.mesh.geometry.x
+        ext = np.concatenate([-np.min(x, axis=0, initial=np.inf), np.max(x, axis=0, initial=-np.inf)])
+        self.comm.Allreduce(MPI.IN_PLACE, ext, op=MPI.MAX)
+        return max(float(np.max(ext[3:] + ext[:3])), 1e-300)
 
     def rigid_vector(self, component):
         """The vector of W that represents the constant unit field in ``component``."""

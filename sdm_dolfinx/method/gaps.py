@@ -2,7 +2,9 @@
 dof of the constrained boundary (collective), from the Discretisation alone.
 
 The Integrator, the time series and the observers' :class:`~sdm_dolfinx.run.observe.State` all
-measure it here. ``u`` is the owned part of a W^h vector as an array (``U.array_r``).
+measure it here. ``u`` is the owned part of a W^h vector as an array (``U.array_r``). Against a
+Problem's obstacles the gap is the signed distance phi(a_i + u_i, t) to the nearest obstacle at the
+time ``t`` of the state (:mod:`.obstacle_rows`), not linearised.
 """
 from __future__ import annotations
 
@@ -17,22 +19,29 @@ if TYPE_CHECKING:
     from sdm_dolfinx.method.discretisation import Discretisation
 
 
-def vertex_gap(discretisation: Discretisation, u: npt.NDArray[np.float64]) -> float:
+def vertex_gap(discretisation: Discretisation, u: npt.NDArray[np.float64], t: float = 0.0) -> float:
     """min over the constrained vertices of u_c - bound, reduced over the ranks (+inf without any)."""
     d = discretisation
+    if d.obstacle_rows is not None:
+        return d.obstacle_rows.gap(u, t)
     return d.comm.allreduce(float(np.min(u[d.cdofs] - d.lb, initial=np.inf)), op=MPI.MIN)
 
 
-def boundary_gap(discretisation: Discretisation, u: npt.NDArray[np.float64]) -> float:
+def boundary_gap(discretisation: Discretisation, u: npt.NDArray[np.float64], t: float = 0.0) -> float:
     """min over every dof of W^h on the constrained boundary (P2 mid-edge nodes included) of
     u_c - bound, reduced over the ranks (+inf without such dofs)."""
     d = discretisation
+    if d.obstacle_rows is not None:
+        return d.obstacle_rows.gap(u, t, boundary=True)
     return d.comm.allreduce(float(np.min(u[d.bdofs] - d.blb, initial=np.inf)), op=MPI.MIN)
 
 
-def boundary_gap_where(discretisation: Discretisation, u: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+def boundary_gap_where(discretisation: Discretisation, u: npt.NDArray[np.float64],
+                       t: float = 0.0) -> npt.NDArray[np.float64]:
     """The coordinates (gdim,) of the dof where :func:`boundary_gap` is reached (collective)."""
     d = discretisation
+    if d.obstacle_rows is not None:
+        return d.obstacle_rows.where(u, t)
     gap = u[d.bdofs] - d.blb
     k = int(np.argmin(gap)) if gap.size else -1
     _, owner = d.comm.allreduce((float(gap[k]) if k >= 0 else np.inf, d.comm.rank), op=MPI.MINLOC)
@@ -43,10 +52,12 @@ def boundary_gap_where(discretisation: Discretisation, u: npt.NDArray[np.float64
 def displacement_spread(discretisation: Discretisation, u: npt.NDArray[np.float64]) -> float:
     """max - min over every owned dof of W^h of the bounded component u_c, reduced over the ranks
     (0.0 without dofs): the run's displacement scale in the direction of the constraint, a rigid
-    translation excluded (a block pushed down by d at its top while its bottom rests: d)."""
+    translation excluded (a block pushed down by d at its top while its bottom rests: d). Against
+    obstacles, whose normals turn, the largest such spread over the components."""
     d = discretisation
     bs = d.W.dofmap.index_map_bs
-    uc = u[(d.problem.constraint_component or 0)::bs] if bs > 1 else u
-    ext = np.array([np.max(uc, initial=-np.inf), -np.min(uc, initial=np.inf)])
+    comps = range(bs) if d.obstacle_rows is not None else [d.problem.constraint_component or 0]
+    ext = np.array([v for c in comps for v in (np.max(u[c::bs], initial=-np.inf), -np.min(u[c::bs], initial=np.inf))])
     d.comm.Allreduce(MPI.IN_PLACE, ext, op=MPI.MAX)
-    return float(ext[0] + ext[1]) if np.all(np.isfinite(ext)) else 0.0
+    spreads = ext[0::2] + ext[1::2]
+    return float(np.max(spreads)) if np.all(np.isfinite(ext)) else 0.0

@@ -36,7 +36,10 @@ def vertices(problem, comm):
 
 def bound(problem, x, comm, t=0.0):
     """``problem.lower_bound(x)`` (a moving bound: ``lower_bound(x, t)``) at the points ``x`` (3, n):
-    n finite numbers."""
+    n finite numbers. A Problem with ``obstacles`` has no such bound: NaN (every gap of it is
+    :mod:`.obstacle_rows`'s, and a NaN can never pass for a gap)."""
+    if getattr(problem, "obstacles", ()):
+        return np.full(x.shape[1], np.nan, dtype=PETSc.ScalarType)
     moving, wrong = getattr(problem, "moving_bound", False), None
     try:
         lb = np.asarray(bound_at(problem, x, t))

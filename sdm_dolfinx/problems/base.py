@@ -81,6 +81,12 @@ class Problem:
             conserved: :mod:`sdm_dolfinx.schemes.midpoint`), backward Euler U^{n+1} >= g(t_{n+1});
             the other schemes, the penalty and Nitsche treatments refuse it in one line. The time
             series gets the columns ``obstacle_work`` and ``obstacle_probe``.
+        obstacles: rigid obstacles (:mod:`sdm_dolfinx.problems.obstacles`: half-spaces of any
+            orientation, balls and bowls, cylinders, wedges, surface meshes; fixed or moving) instead
+            of ``lower_bound``, which is then None: every constrained node stays outside every
+            obstacle, phi(a_i + u(a_i), t) >= 0, the rows linearised at the current configuration
+            (:mod:`sdm_dolfinx.method.obstacle_rows`). A vector u only. Taken by the midpoint and
+            backward Euler schemes with the exact contact, frictionless (the rest refuse it in one line).
         constraint_component: component of u that is bounded, and that ``u_probe`` records:
             required for a vector u (an int in 0..gdim-1; the Problem refuses None), None (or 0)
             for a scalar u.
@@ -131,7 +137,7 @@ class Problem:
     u0: Union[PointFunction, str]
     v0: PointFunction
     constraint_vertices: MeshEntities
-    lower_bound: PointFunction
+    lower_bound: Optional[PointFunction]
     constraint_measure: Callable[[UFL], UFL]
     rho: float = 1.0
     constraint_component: Optional[int] = None
@@ -149,6 +155,7 @@ class Problem:
     stress: Optional[Callable[[UFL], UFL]] = None
     dirichlet_parts: Sequence[DirichletPart] = ()
     moving_bound: bool = False
+    obstacles: Sequence[Any] = ()
 
     def __post_init__(self) -> None:
         self.validate()
@@ -190,6 +197,7 @@ class Problem:
             raise ProblemInputError(f"problem {self.name!r}: time must be a scalar fem.Constant used by l(w) "
                                     f"(got {type(self.time).__name__})")
         validate_parts(self.name, self.dirichlet_parts, shape)
+        self._validate_obstacles(shape)
         if not isinstance(self.moving_bound, (bool, np.bool_)):
             raise ProblemInputError(f"problem {self.name!r}: moving_bound must be True (lower_bound takes (x, t)) or "
                                     f"False (lower_bound takes x) (got {self.moving_bound!r})")
@@ -201,6 +209,28 @@ class Problem:
         degenerate = degenerate_cells(self.mesh) if hasattr(self.mesh, "geometry") else None
         if degenerate:
             raise ProblemInputError(f"problem {self.name!r}: {degenerate}")
+
+    def _validate_obstacles(self, shape: tuple[int, ...]) -> None:
+        """Obstacles: objects with ``distance(x, t)``, on a vector problem, instead of ``lower_bound``."""
+        obstacles = self.obstacles
+        if isinstance(obstacles, (str, bytes)) or not isinstance(obstacles, (list, tuple)):
+            raise ProblemInputError(f"problem {self.name!r}: obstacles must be a list of obstacles "
+                                    f"(sdm_dolfinx.problems.obstacles), got {type(obstacles).__name__}")
+        if not obstacles:
+            if self.lower_bound is None:
+                raise ProblemInputError(f"problem {self.name!r}: lower_bound is None and there are no obstacles: "
+                                        f"declare lower_bound (u_c >= bound) or obstacles")
+            return
+        bad = [type(o).__name__ for o in obstacles if not callable(getattr(o, "distance", None))]
+        if bad:
+            raise ProblemInputError(f"problem {self.name!r}: obstacles must have distance(x, t) (see "
+                                    f"sdm_dolfinx.problems.obstacles), not {bad[0]}")
+        if not shape:
+            raise ProblemInputError(f"problem {self.name!r}: obstacles constrain a displacement vector; a scalar u "
+                                    f"is bounded by lower_bound")
+        if self.lower_bound is not None or self.moving_bound:
+            raise ProblemInputError(f"problem {self.name!r}: declare either lower_bound (one component bounded) or "
+                                    f"obstacles, not both (set lower_bound=None and moving_bound=False)")
 
     def describe(self) -> dict[str, Any]:
         """Parameters with their units, as written to ``run.json`` (``args`` and ``source``
@@ -220,6 +250,9 @@ class Problem:
             d["dirichlet_parts"] = [part.describe(tuple(self.shape)) for part in self.dirichlet_parts]
         if self.moving_bound:
             d["bound"] = "moving: lower_bound(x, t) (each step imposes the scheme's step bound)"
+        if self.obstacles:
+            d["obstacles"] = [o.describe() if hasattr(o, "describe") else {"kind": type(o).__name__}
+                              for o in self.obstacles]
         return d
 
     def bound(self, x: npt.NDArray[np.float64], t: float = 0.0) -> npt.ArrayLike:

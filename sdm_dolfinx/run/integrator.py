@@ -37,6 +37,7 @@ from sdm_dolfinx.solvers import VIError, choose_strategy, make_vi_solver, sparse
 from sdm_dolfinx.solvers.schur import SCHUR_MAX_ACTIVE_3D
 from sdm_dolfinx.solvers.friction_newton import FrictionalNewton
 from sdm_dolfinx.solvers.friction_cone import FrictionalNewtonCone
+from sdm_dolfinx.solvers.gap_newton import GapNewton
 
 #: the registered time schemes' names (:mod:`sdm_dolfinx.schemes`)
 SCHEMES = schemes.names()
@@ -87,7 +88,8 @@ class Integrator:
         self.parts = _prescribed.Prescribed() if discretisation.problem.dirichlet_parts else None
         refused = _friction.check_solver(self.friction and self.friction.law, vi_solver, linear)
         parts_refused = self.parts.refuse(self) if self.parts else None
-        refused = refused or [r for r in (self._refuse_contact(), parts_refused,
+        refused = refused or [r for r in (self._refuse_obstacles(ts, vi_solver, linear), self._refuse_contact(),
+                                          parts_refused,
                                           _mb.refusal(discretisation, ts, contact), ts.refuse(self)) if r]
         if refused:
             raise DiscretisationError(refused[0])
@@ -102,6 +104,22 @@ class Integrator:
         """The scheme keeps state beyond (U, V) between steps (Newmark's acceleration): a
         checkpoint of U and V cannot restart it."""
         return bool(self.time_scheme.stateful)
+
+    def _refuse_obstacles(self, ts, vi_solver, linear):
+        """The one-line refusal of what the gap rows against obstacles do not take yet, or None."""
+        if self.discretisation.obstacle_rows is None:
+            return None
+        what = f"problem {self.discretisation.problem.name!r} has obstacles"
+        if ts.bound_weight is None:
+            return f"{what}, which scheme {ts.name!r} does not take: use the midpoint or backward-euler scheme"
+        if self.contact != "exact":
+            return f"{what}, which contact {self.contact!r} does not take yet: use contact 'exact'"
+        if self.friction is not None:
+            return f"{what}: friction against obstacles is not built yet (frictionless only)"
+        if vi_solver != "ssn" or linear not in ("auto", "schur"):
+            return (f"{what}: their gap rows are solved by the semi-smooth Newton with linear strategy schur only "
+                    f"(got vi_solver {vi_solver!r}, linear {linear!r})")
+        return None
 
     def _refuse_contact(self):
         """The refusal of a contact treatment with friction or the block variant, or of friction or a
@@ -132,7 +150,8 @@ class Integrator:
             self._gamg = _iterative.attach(self.K, d, self.coefficients)
         # a factorisation of K = c_M B^T D^-1 B + A is cheaper through the sparser
         # augmented matrix [A, sqrt(c_M) B^T; sqrt(c_M) B, -D] when M is much denser than A (P2/P1)
-        factorised = self.friction is not None or (vi_solver == "ssn" and linear in ("schur", "cg-factor"))
+        factorised = (self.friction is not None or d.obstacle_rows is not None
+                      or (vi_solver == "ssn" and linear in ("schur", "cg-factor")))
         self.factor_matrix = None
         if (factorised and not self.block and self.coefficients is not None and self.coefficients[1] == 1.0
                 and d.B is not None and d.c_lumped is not None):
@@ -140,7 +159,11 @@ class Integrator:
             scale = a if a is not None and a * a == c_M else np.sqrt(c_M)
             self.factor_matrix = sparse_factor_matrix(self.K, d.A, d.B, d.c_lumped, scale, d.ddofs)
         self.slip = None
-        if self.contact != "exact":
+        if d.obstacle_rows is not None:         # gap rows: the semi-smooth Newton on G x >= g
+            self.linear_strategy, self.linear_reason = "schur", "obstacles: gap rows (dense Schur complement)"
+            self.solver = GapNewton(self.K, d.obstacle_rows.dofs, symmetric_positive=not self.block,
+                                    options=options, factor_matrix=self.factor_matrix)
+        elif self.contact != "exact":
             from sdm_dolfinx import contact as _contact  # lazily: a registry of its own
             context = StepContext(self.K, d, self.dt, self.block, self.factor_matrix)     # never the Integrator
             self.treatment = _contact.make(self.contact, context, dict(contact_options or {}))
@@ -258,6 +281,10 @@ class Integrator:
         if self.parts:
             self.parts.lift(self, U, t)
         self.moving.before_step(n, t)       # a moving obstacle: the step's bound into d.lb (else nothing)
+        rows = d.obstacle_rows
+        t1 = (n + 1) * self.dt if t == n * self.dt else t + self.dt
+        if rows is not None:                # gap rows linearised at U^n (method/obstacle_rows.py)
+            self.solver.set_rows(*rows.rows(U.array_r, t, t1, ts.bound_weight))
         if ts.stateful and self.state is None:
             self.state = ts.start(self, U, V, t)
         b = ts.rhs(self, U, V, L, t)
@@ -272,7 +299,10 @@ class Integrator:
             raise StepError(f"step {n + 1} (t = {t + self.dt:.6g}): {e}{self._coulomb_hint()}") from None
         comm = d.comm
         # a contact treatment imposes nothing (penetration is its model): +inf
-        imposed = ts.imposed_gap(self, X) if self.treatment is None else float("inf")
+        if rows is not None:                # the rows' own gap G X - g
+            imposed = float(np.min(self.solver.row_values(X.array_r) - self.solver.g, initial=np.inf))
+        else:
+            imposed = ts.imposed_gap(self, X) if self.treatment is None else float("inf")
         info["gap_imposed"] = comm.allreduce(imposed, op=MPI.MIN)
         self.moving.after_solve(self.lam, info)     # the bound at t_{n+1}, the step's obstacle_work
         Un = U.array.copy() if self.friction is not None else None
@@ -282,7 +312,12 @@ class Integrator:
             self.parts.reactions(self, info, X, U, Un_D)
         if self.friction is not None:
             _friction.step_info(self, info, U.array, Un)
-        info["gap_end"] = comm.allreduce(float(np.min(U.array[d.cdofs] - d.lb, initial=np.inf)), op=MPI.MIN)
+        if rows is not None:                # the true signed distance at t_{n+1}, and the obstacles' work
+            info["gap_end"] = rows.gap(U.array_r, t1)
+            if rows.moves:
+                info["obstacle_work"] = rows.work(self.lam)
+        else:
+            info["gap_end"] = comm.allreduce(float(np.min(U.array[d.cdofs] - d.lb, initial=np.inf)), op=MPI.MIN)
         return info
 
     def _coulomb_hint(self):

@@ -162,6 +162,8 @@ class TimeSeries:
         dirichlet = dirichlet_columns(problem)
         self.reaction_columns = dirichlet[:-1]
         obstacle = OBSTACLE_COLUMNS if moving_bound.moves(d) else ()
+        if d.obstacle_rows is not None and d.obstacle_rows.moves:      # moving obstacles: their work only
+            obstacle = OBSTACLE_COLUMNS[:1]
         self.columns: tuple[str, ...] = (BASE_COLUMNS + contact + tuple(problem.extra_columns) + friction_cols
                                          + boundary + dirichlet + obstacle)
         self.data = {c: np.zeros(nsteps + 1) for c in self.columns}
@@ -208,10 +210,11 @@ class TimeSeries:
             row["elastic"] = pot + U.dot(f.load(t))
         if "obstacle_work" in self.columns:      # the discretisation's lb is the bound at the state's time
             before = self.data["obstacle_work"][n - 1] if n > 0 else 0.0
-            row.update(obstacle_work=before + (step or {}).get("obstacle_work", 0.0),
-                       obstacle_probe=self.cprobe.at(self.discretisation.lb))
+            row["obstacle_work"] = before + (step or {}).get("obstacle_work", 0.0)
+        if "obstacle_probe" in self.columns:
+            row["obstacle_probe"] = self.cprobe.at(self.discretisation.lb)
         if BOUNDARY_GAP in self.columns:
-            row[BOUNDARY_GAP] = gaps.boundary_gap(self.discretisation, U.array_r)
+            row[BOUNDARY_GAP] = gaps.boundary_gap(self.discretisation, U.array_r, t)
             self._track_sink(n, t, U, row[BOUNDARY_GAP])
         row["linear_its_total"] = linear_its_total
         if not np.isfinite(row["energy"]):
@@ -243,9 +246,9 @@ class TimeSeries:
         the constrained vertices (with where it was: one more collective when it deepens)."""
         d = self.discretisation
         self.spread = max(self.spread, gaps.displacement_spread(d, U.array_r))
-        sink = min(gaps.vertex_gap(d, U.array_r), 0.0) - gap
+        sink = min(gaps.vertex_gap(d, U.array_r, t), 0.0) - gap
         if sink > self.sink[0]:
-            self.sink = (sink, n, t, gaps.boundary_gap_where(d, U.array_r))
+            self.sink = (sink, n, t, gaps.boundary_gap_where(d, U.array_r, t))
 
     @property
     def boundary_tol(self) -> float:

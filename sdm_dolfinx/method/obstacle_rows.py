@@ -1,0 +1,153 @@
+"""Gap rows against rigid obstacles: the constraint phi(a_i + u(a_i), t) >= 0 at the constrained nodes.
+
+A Problem that declares ``obstacles`` (signed distances phi(x, t) > 0 outside each obstacle, unit
+normal n = grad phi: :mod:`sdm_dolfinx.problems.obstacles`) constrains every constrained node a_i
+(the vertices of ``constraint_vertices``; with ``constrain="nodes"`` every node of W^h on the
+constrained boundary) by the nearest obstacle: phi_i(y) = min over the obstacles.
+
+**Linearisation, at the current configuration.** A step from (U^n, t_n) to t_{n+1} imposes, on the
+scheme's constrained iterate X (the midpoint scheme's U^{n+1/2}, backward Euler's U^{n+1}), the
+row linearised at the node's position y_i = a_i + U^n_i at the start of the step:
+
+    n_i . X_i >= n_i . U^n_i - phibar_i,        phibar_i = (1 - w) phi_i(y_i, t_n) + w phi_i(y_i, t_{n+1}),
+
+with n_i the same combination of the normals (normalised) and w the scheme's ``bound_weight``
+(midpoint 1/2, backward Euler 1: a fixed obstacle has phibar = phi(y_i)). This is the axis-aligned
+bound u_c >= g of a plane whose normal is e_c exactly. The linearisation error of a row is
+phi(y + d) - phi(y) - n . d = O(|d_t|^2 / R) for a tangential move d_t of the node during the step
+on an obstacle of curvature radius R (0 for a plane): the midpoint scheme keeps a node in sustained
+contact on a curved obstacle to within O(|V| dt)^2 / R, alternating in sign (it constrains the
+midpoint), and the energy balance holds to the same order (E^{n+1} - E^n = sum_i lam_i n_i .
+(U^{n+1}_i - U^n_i), zero where the row holds with phi_i(y_i) = 0). The rows are recomputed
+before every step; the step solver caches K^-1 columns per dof, so a normal that turns costs no
+new solve (:mod:`sdm_dolfinx.solvers.gap_newton`).
+
+**The obstacle's work.** A moving obstacle (``Obstacle.moves``) does the work sum_i lam_i
+(phi_i(y_i, t_n) - phi_i(y_i, t_{n+1})) on the body in a step (for a plane moving along its normal
+exactly the moving bound's lam (g(t_{n+1}) - g(t_n)), :mod:`sdm_dolfinx.schemes.midpoint`): the
+column ``obstacle_work``.
+
+**Gaps.** The time series' gaps are the true signed distances phi(a_i + U_i, t) (not linearised):
+``gap_min_boundary`` at every node of W^h on the constrained boundary, the penetration nobody
+could see otherwise.
+"""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Optional
+
+from mpi4py import MPI
+
+import numpy as np
+import numpy.typing as npt
+
+
+if TYPE_CHECKING:
+    from sdm_dolfinx.method.discretisation import Discretisation
+
+Array = npt.NDArray[np.float64]
+
+
+def nearest(obstacles, y: Array, t: float, weight: Optional[float] = None, t1: Optional[float] = None):
+    """(phi (n,), normal (3, n), which (n,)) of the nearest of ``obstacles`` at the points y (3, n) at
+    time t; with ``weight`` w and ``t1``: the combination (1 - w) f(t) + w f(t1) of each obstacle's
+    phi and normal (normal renormalised) before the nearest is chosen."""
+    n = y.shape[1]
+    best, normal, which = np.full(n, np.inf), np.zeros((3, n)), np.zeros(n, dtype=np.int32)
+    for k, ob in enumerate(obstacles):
+        phi, nrm = (np.asarray(a, dtype=float) for a in ob.distance(y, t))
+        if weight is not None and weight != 0.0:
+            phi1, nrm1 = (np.asarray(a, dtype=float) for a in ob.distance(y, t1))
+            phi, nrm = (1.0 - weight) * phi + weight * phi1, (1.0 - weight) * nrm + weight * nrm1
+            norm = np.linalg.norm(nrm, axis=0)
+            nrm = nrm / np.where(norm > 0, norm, 1.0)
+        closer = phi < best
+        best[closer], normal[:, closer], which[closer] = phi[closer], nrm[:, closer], k
+    return best, normal, which
+
+
+class ObstacleRows:
+    """The gap rows of a Discretisation whose Problem declares ``obstacles`` (see the module).
+
+    Attributes:
+        dofs: (m, gdim) owned local dofs of W^h of the m constrained nodes of this rank (row i reads
+            dofs[i]; the constrained dofs ``cdofs`` are their ``constraint_component`` entries).
+        x: (3, m) the nodes' reference coordinates.
+        moves: some obstacle moves.
+    """
+
+    def __init__(self, d: Discretisation) -> None:
+        p = d.problem
+        self.d, self.obstacles = d, tuple(p.obstacles)
+        self.comm = d.comm
+        self.gdim = int(p.shape[0])
+        bs = d.W.dofmap.index_map_bs
+        c = p.constraint_component or 0
+        blocks = (np.asarray(d.cdofs, dtype=np.int64) - c) // bs
+        self.dofs = (blocks[:, None] * bs + np.arange(self.gdim)[None, :]).astype(np.int32)
+        #: the rows' entries at Dirichlet dofs (constant data: a Dirichlet part on the contact face is
+        #: refused), which X does not change: their terms n_c X_c = n_c U^n_c leave the row
+        self.free = ~np.isin(self.dofs, np.asarray(d.ddofs))
+        self.x = np.asarray(d.cx, dtype=float)
+        bblocks = (np.asarray(d.bdofs, dtype=np.int64) - c) // bs
+        self.bdofs = (bblocks[:, None] * bs + np.arange(self.gdim)[None, :]).astype(np.int32)
+        self.bx = np.asarray(d.bx, dtype=float)
+        self.moves = any(bool(getattr(ob, "moves", False)) for ob in self.obstacles)
+        self._y: Optional[Array] = None
+        self._t: tuple[float, float] = (0.0, 0.0)
+
+    # ---------------------------------------------------------------- positions and gaps
+    def _at(self, x: Array, dofs: Array, u: Array) -> Array:
+        """The current positions (3, n) of the nodes at reference ``x`` whose dofs are ``dofs``."""
+        y = np.array(x, dtype=float, copy=True)
+        if len(dofs):
+            y[:self.gdim] += u[dofs].T
+        return y
+
+    def phi(self, u: Array, t: float, boundary: bool = False) -> Array:
+        """The signed distances (local, (n,)) of the constrained nodes (``boundary``: of every node of the
+        constrained boundary) at the state ``u`` (an owned array of W^h) at time t."""
+        x, dofs = (self.bx, self.bdofs) if boundary else (self.x, self.dofs)
+        return nearest(self.obstacles, self._at(x, dofs, u), t)[0] if len(dofs) else np.zeros(0)
+
+    def gap(self, u: Array, t: float, boundary: bool = False) -> float:
+        """min of :meth:`phi` over the ranks (+inf without nodes; collective)."""
+        return self.comm.allreduce(float(np.min(self.phi(u, t, boundary), initial=np.inf)), op=MPI.MIN)
+
+    def where(self, u: Array, t: float) -> Array:
+        """The reference coordinates (gdim,) of the constrained boundary's node nearest to an obstacle."""
+        phi = self.phi(u, t, boundary=True)
+        k = int(np.argmin(phi)) if phi.size else -1
+        _, owner = self.comm.allreduce((float(phi[k]) if k >= 0 else np.inf, self.comm.rank), op=MPI.MINLOC)
+        x = self.comm.bcast(self.bx[:, k] if self.comm.rank == owner else None, root=owner)
+        return np.asarray(x)[:self.gdim]
+
+    # ---------------------------------------------------------------- the step's rows
+    def rows(self, u: Array, t0: float, t1: float, weight: float) -> tuple[Array, Array]:
+        """(coef (m, gdim), g (m,)) of the step from t0 to t1 linearised at the state ``u`` (U^n), for a
+        scheme imposing the rows at ``weight`` (see the module); keeps the linearisation point for
+        :meth:`work`."""
+        self._y, self._t = self._at(self.x, self.dofs, u), (t0, t1)
+        if not len(self.dofs):
+            return np.zeros((0, self.gdim)), np.zeros(0)
+        phi, nrm, _ = nearest(self.obstacles, self._y, t0, weight if self.moves else None, t1)
+        coef = np.ascontiguousarray(nrm[:self.gdim].T) * self.free
+        g = np.einsum("ik,ik->i", coef, u[self.dofs]) - phi
+        g[~np.any(coef != 0.0, axis=1)] = -np.inf          # every component fixed: nothing to hold
+        return coef, g
+
+    def work(self, lam: Array) -> float:
+        """The obstacle's work in the last step: sum_i lam_i (phi_i(y_i, t_n) - phi_i(y_i, t_{n+1})) at the
+        linearisation points of :meth:`rows` (0 when nothing moves; collective)."""
+        if not self.moves or self._y is None:
+            return 0.0
+        t0, t1 = self._t
+        local = 0.0
+        if len(self.dofs):
+            phi0 = nearest(self.obstacles, self._y, t0)[0]
+            phi1 = nearest(self.obstacles, self._y, t1)[0]
+            local = float(np.dot(lam, phi0 - phi1))
+        return self.comm.allreduce(local, op=MPI.SUM)
+
+    def describe(self) -> list[dict]:
+        """The obstacles as ``run.json`` holds them."""
+        return [ob.describe() if hasattr(ob, "describe") else {"kind": type(ob).__name__} for ob in self.obstacles]
