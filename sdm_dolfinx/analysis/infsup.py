@@ -102,6 +102,10 @@ def operators(disc):
     the constrained columns of B (G's unit rows), in the reduced numbering.
     """
     comm = disc.comm
+    if disc.obstacle_rows is not None:
+        raise InspectError(f"problem {disc.problem.name!r} has obstacles: condition (7) for their gap rows (normals "
+                           f"that turn) is not measured yet; the same constrained nodes bounded along one axis "
+                           f"(lower_bound) give the inf-sup constant of an obstacle's flat part")
     W = disc.W
     bs = W.dofmap.index_map_bs
     off = W.dofmap.index_map.local_range[0] * bs

@@ -45,6 +45,9 @@ from mpi4py import MPI
 import numpy as np
 
 from sdm_dolfinx.params import OptionError, Param, check_given
+from sdm_dolfinx.method.errors import DiscretisationError
+from sdm_dolfinx.solvers.friction_cone import FrictionalNewtonCone
+from sdm_dolfinx.solvers.friction_newton import FrictionalNewton
 
 #: each friction law (the values of the run option ``friction``) and the options it declares
 #: (``friction_options``)
@@ -167,3 +170,19 @@ def step_info(integ, info, u, un):
     total = comm.allreduce(np.r_[lam_t.sum(axis=0), np.sum(lam_t * integ.slip_t)], op=MPI.SUM)
     info.update(tangential_force=float(np.hypot(total[0], total[1])), tangential_force_t=total[:2].tolist(),
                 friction_work=float(total[2]))
+
+
+def make_solver(integ, options):
+    """The frictional step solver of the Integrator ``integ`` (2-D: :class:`FrictionalNewton`, 3-D: m x 2
+    tangential dofs, :class:`FrictionalNewtonCone`); sets ``integ.tdofs``, ``slip`` and ``slip_t``."""
+    d, f = integ.discretisation, integ.friction
+    try:
+        integ.tdofs, thresholds = contact_dofs(d, f)
+    except ValueError as e:
+        raise DiscretisationError(str(e)) from None
+    cls = FrictionalNewtonCone if integ.tdofs.ndim == 2 else FrictionalNewton
+    solver = cls(integ.K, d.cdofs, integ.tdofs, d.lb, law=f.law, mu=f.mu, threshold=thresholds,
+                 symmetric_positive=not integ.block, options=options, factor_matrix=integ.factor_matrix)
+    integ.slip = np.zeros(len(integ.tdofs))
+    integ.slip_t = np.zeros(integ.tdofs.shape)
+    return solver

@@ -120,3 +120,11 @@ def warn_if_above(integ, mu):
     warnings.warn_explicit(f"mu = {mu:g} is above {bound:.3g}, the Coulomb bound measured on this run's step "
                            f"problem (a sufficient bound: a step may fail to converge; {command_for(integ)} "
                            f"measures it before a run)", CoulombBoundWarning, "sdm_dolfinx", 0)
+
+
+def step_hint(integ):
+    """A failed step's hint: for Coulomb friction the Coulomb bound of the step problem, measured now,
+    and the command that measures it before a run (:func:`failure_hint`); else ''."""
+    if integ.friction is None or integ.friction.law != "coulomb":
+        return ""
+    return failure_hint(integ, integ.friction.mu, command_for(integ))

@@ -362,7 +362,7 @@ class Discretisation:
         """DiscretisationError when U0 is below the bound at constrained vertices (beyond INITIAL_TOL)."""
         comm = self.comm
         if self.obstacle_rows is not None:
-            gap, scale = self.obstacle_rows.phi(U.array_r, 0.0), self._diameter()
+            gap, scale = self.obstacle_rows.phi(U.array_r, 0.0), self.obstacle_rows.size
         else:
             gap = U.array[self.cdofs] - self.lb
             scale = None
@@ -381,13 +381,6 @@ class Discretisation:
             f"{'vertices' if self.constrain == 'vertices' else 'nodes'}, by up to {-worst:.3g} at ({where}) (tolerance "
             f"{tol:.1e}); u0 must satisfy the constraint"
             + ("" if self.constrain == "vertices" else " at every constrained node (constrain nodes)"))
-
-    def _diameter(self):
-        """The mesh's largest extent along an axis (collective): the scale of an obstacle's gap tolerance."""
-        x = self.problem.mesh.geometry.x
-        ext = np.concatenate([-np.min(x, axis=0, initial=np.inf), np.max(x, axis=0, initial=-np.inf)])
-        self.comm.Allreduce(MPI.IN_PLACE, ext, op=MPI.MAX)
-        return max(float(np.max(ext[3:] + ext[:3])), 1e-300)
 
     def rigid_vector(self, component):
         """The vector of W that represents the constant unit field in ``component``."""

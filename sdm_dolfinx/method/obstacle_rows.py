@@ -33,16 +33,16 @@ could see otherwise.
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Optional
+from typing import Any, Optional
 
 from mpi4py import MPI
 
 import numpy as np
 import numpy.typing as npt
 
+from sdm_dolfinx.method.errors import DiscretisationError
+from sdm_dolfinx.problems.base import label
 
-if TYPE_CHECKING:
-    from sdm_dolfinx.method.discretisation import Discretisation
 
 Array = npt.NDArray[np.float64]
 
@@ -65,8 +65,27 @@ def nearest(obstacles, y: Array, t: float, weight: Optional[float] = None, t1: O
     return best, normal, which
 
 
+def refusal(integ: Any, scheme: Any, vi_solver: str, linear: str) -> Optional[str]:
+    """The one-line refusal of what the gap rows against obstacles do not take yet, or None (also
+    without obstacles). ``integ``: the Integrator being built (its discretisation, contact, friction)."""
+    d = integ.discretisation
+    if d.obstacle_rows is None:
+        return None
+    what = f"problem {d.problem.name!r} has obstacles"
+    if scheme.bound_weight is None:
+        return f"{what}, which scheme {scheme.name!r} does not take: use the midpoint or backward-euler scheme"
+    if integ.contact != "exact":
+        return f"{what}, which contact {integ.contact!r} does not take yet: use contact 'exact'"
+    if integ.friction is not None:
+        return f"{what}: friction against obstacles is not built yet (frictionless only)"
+    if vi_solver != "ssn" or linear not in ("auto", "schur"):
+        return (f"{what}: their gap rows are solved by the semi-smooth Newton with linear strategy schur only "
+                f"(got vi_solver {vi_solver!r}, linear {linear!r})")
+    return None
+
+
 class ObstacleRows:
-    """The gap rows of a Discretisation whose Problem declares ``obstacles`` (see the module).
+    """The gap rows of a Discretisation ``d`` whose Problem declares ``obstacles`` (see the module).
 
     Attributes:
         dofs: (m, gdim) owned local dofs of W^h of the m constrained nodes of this rank (row i reads
@@ -75,7 +94,7 @@ class ObstacleRows:
         moves: some obstacle moves.
     """
 
-    def __init__(self, d: Discretisation) -> None:
+    def __init__(self, d: Any) -> None:
         p = d.problem
         self.d, self.obstacles = d, tuple(p.obstacles)
         self.comm = d.comm
@@ -92,6 +111,16 @@ class ObstacleRows:
         self.bdofs = (bblocks[:, None] * bs + np.arange(self.gdim)[None, :]).astype(np.int32)
         self.bx = np.asarray(d.bx, dtype=float)
         self.moves = any(bool(getattr(ob, "moves", False)) for ob in self.obstacles)
+        x = np.asarray(p.mesh.geometry.x)
+        ext = np.concatenate([-np.min(x, axis=0, initial=np.inf), np.max(x, axis=0, initial=-np.inf)])
+        self.comm.Allreduce(MPI.IN_PLACE, ext, op=MPI.MAX)
+        #: the mesh's largest extent along an axis: the scale of the initial state's gap tolerance
+        self.size = max(float(np.max(ext[3:] + ext[:3])), 1e-300)
+        flat = [ob for ob in self.obstacles if self.gdim == 2 and not getattr(ob, "planar", True)]
+        if flat:
+            raise DiscretisationError(f"{label(p)}: obstacle {getattr(flat[0], 'kind', type(flat[0]).__name__)!r} "
+                                      f"is not a plane-section obstacle (its normals leave the x-y plane): a 2-D "
+                                      f"problem takes half-spaces, balls (discs), wedges and 2-D surface meshes")
         self._y: Optional[Array] = None
         self._t: tuple[float, float] = (0.0, 0.0)
 
@@ -134,6 +163,17 @@ class ObstacleRows:
         g = np.einsum("ik,ik->i", coef, u[self.dofs]) - phi
         g[~np.any(coef != 0.0, axis=1)] = -np.inf          # every component fixed: nothing to hold
         return coef, g
+
+    def imposed_gap(self, solver: Any, x: Array) -> float:
+        """min over this rank's rows of G X - g for the step ``solver``'s rows (local)."""
+        return float(np.min(solver.row_values(x) - solver.g, initial=np.inf))
+
+    def after_step(self, info: dict, u: Array, t1: float, lam: Array) -> None:
+        """``info["gap_end"]``, the true signed distance of U^{n+1} = ``u`` at t_{n+1}, and with moving
+        obstacles ``info["obstacle_work"]`` (:meth:`work`; collective)."""
+        info["gap_end"] = self.gap(u, t1)
+        if self.moves:
+            info["obstacle_work"] = self.work(lam)
 
     def work(self, lam: Array) -> float:
         """The obstacle's work in the last step: sum_i lam_i (phi_i(y_i, t_n) - phi_i(y_i, t_{n+1})) at the

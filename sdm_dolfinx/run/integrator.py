@@ -26,7 +26,8 @@ from mpi4py import MPI
 
 import numpy as np
 
-from sdm_dolfinx.method import gaps as _gaps, iterative as _iterative, moving_bound as _mb, step_matrix as _step_matrix
+from sdm_dolfinx.method import iterative as _iterative, moving_bound as _mb, step_matrix as _step_matrix
+from sdm_dolfinx.method import obstacle_rows as _obstacles
 from sdm_dolfinx.contact import friction as _friction, friction_bound as _friction_bound
 from sdm_dolfinx.contact.context import StepContext
 from sdm_dolfinx.run import prescribed as _prescribed
@@ -35,8 +36,6 @@ from sdm_dolfinx.errors import StepError
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.solvers import VIError, choose_strategy, make_vi_solver, sparse_factor_matrix
 from sdm_dolfinx.solvers.schur import SCHUR_MAX_ACTIVE_3D
-from sdm_dolfinx.solvers.friction_newton import FrictionalNewton
-from sdm_dolfinx.solvers.friction_cone import FrictionalNewtonCone
 from sdm_dolfinx.solvers.gap_newton import GapNewton
 
 #: the registered time schemes' names (:mod:`sdm_dolfinx.schemes`)
@@ -88,7 +87,7 @@ class Integrator:
         self.parts = _prescribed.Prescribed() if discretisation.problem.dirichlet_parts else None
         refused = _friction.check_solver(self.friction and self.friction.law, vi_solver, linear)
         parts_refused = self.parts.refuse(self) if self.parts else None
-        refused = refused or [r for r in (self._refuse_obstacles(ts, vi_solver, linear), self._refuse_contact(),
+        refused = refused or [r for r in (_obstacles.refusal(self, ts, vi_solver, linear), self._refuse_contact(),
                                           parts_refused,
                                           _mb.refusal(discretisation, ts, contact), ts.refuse(self)) if r]
         if refused:
@@ -104,22 +103,6 @@ class Integrator:
         """The scheme keeps state beyond (U, V) between steps (Newmark's acceleration): a
         checkpoint of U and V cannot restart it."""
         return bool(self.time_scheme.stateful)
-
-    def _refuse_obstacles(self, ts, vi_solver, linear):
-        """The one-line refusal of what the gap rows against obstacles do not take yet, or None."""
-        if self.discretisation.obstacle_rows is None:
-            return None
-        what = f"problem {self.discretisation.problem.name!r} has obstacles"
-        if ts.bound_weight is None:
-            return f"{what}, which scheme {ts.name!r} does not take: use the midpoint or backward-euler scheme"
-        if self.contact != "exact":
-            return f"{what}, which contact {self.contact!r} does not take yet: use contact 'exact'"
-        if self.friction is not None:
-            return f"{what}: friction against obstacles is not built yet (frictionless only)"
-        if vi_solver != "ssn" or linear not in ("auto", "schur"):
-            return (f"{what}: their gap rows are solved by the semi-smooth Newton with linear strategy schur only "
-                    f"(got vi_solver {vi_solver!r}, linear {linear!r})")
-        return None
 
     def _refuse_contact(self):
         """The refusal of a contact treatment with friction or the block variant, or of friction or a
@@ -175,21 +158,9 @@ class Integrator:
                                          symmetric_positive=not self.block, linear=linear, options=options,
                                          factor_matrix=self.factor_matrix)
         else:
-            self._friction_solver(options)
+            self.solver = _friction.make_solver(self, options)
             if self.friction.law == "coulomb":          # up front: a mu the measured bound does not cover
                 _friction_bound.warn_if_above(self, self.friction.mu)
-
-    def _friction_solver(self, options):
-        d, f = self.discretisation, self.friction
-        try:
-            self.tdofs, thresholds = _friction.contact_dofs(d, f)
-        except ValueError as e:
-            raise DiscretisationError(str(e)) from None
-        cls = FrictionalNewtonCone if self.tdofs.ndim == 2 else FrictionalNewton      # 3-D: m x 2 tangential dofs
-        self.solver = cls(self.K, d.cdofs, self.tdofs, d.lb, law=f.law, mu=f.mu, threshold=thresholds,
-                          symmetric_positive=not self.block, options=options, factor_matrix=self.factor_matrix)
-        self.slip = np.zeros(len(self.tdofs))
-        self.slip_t = np.zeros(self.tdofs.shape)
 
     def _build(self):
         d, ts = self.discretisation, self.time_scheme
@@ -281,8 +252,7 @@ class Integrator:
         if self.parts:
             self.parts.lift(self, U, t)
         self.moving.before_step(n, t)       # a moving obstacle: the step's bound into d.lb (else nothing)
-        rows = d.obstacle_rows
-        t1 = (n + 1) * self.dt if t == n * self.dt else t + self.dt
+        rows, t1 = d.obstacle_rows, ((n + 1) * self.dt if t == n * self.dt else t + self.dt)
         if rows is not None:                # gap rows linearised at U^n (method/obstacle_rows.py)
             self.solver.set_rows(*rows.rows(U.array_r, t, t1, ts.bound_weight))
         if ts.stateful and self.state is None:
@@ -296,13 +266,11 @@ class Integrator:
             else:
                 info = self.solver.solve(b, X, U.array[self.tdofs].copy())
         except VIError as e:
-            raise StepError(f"step {n + 1} (t = {t + self.dt:.6g}): {e}{self._coulomb_hint()}") from None
+            raise StepError(f"step {n + 1} (t = {t + self.dt:.6g}): {e}{_friction_bound.step_hint(self)}") from None
         comm = d.comm
         # a contact treatment imposes nothing (penetration is its model): +inf
-        if rows is not None:                # the rows' own gap G X - g
-            imposed = float(np.min(self.solver.row_values(X.array_r) - self.solver.g, initial=np.inf))
-        else:
-            imposed = ts.imposed_gap(self, X) if self.treatment is None else float("inf")
+        imposed = (rows.imposed_gap(self.solver, X.array_r) if rows is not None      # the rows' own G X - g
+                   else ts.imposed_gap(self, X) if self.treatment is None else float("inf"))
         info["gap_imposed"] = comm.allreduce(imposed, op=MPI.MIN)
         self.moving.after_solve(self.lam, info)     # the bound at t_{n+1}, the step's obstacle_work
         Un = U.array.copy() if self.friction is not None else None
@@ -313,19 +281,10 @@ class Integrator:
         if self.friction is not None:
             _friction.step_info(self, info, U.array, Un)
         if rows is not None:                # the true signed distance at t_{n+1}, and the obstacles' work
-            info["gap_end"] = rows.gap(U.array_r, t1)
-            if rows.moves:
-                info["obstacle_work"] = rows.work(self.lam)
+            rows.after_step(info, U.array_r, t1, self.lam)
         else:
             info["gap_end"] = comm.allreduce(float(np.min(U.array[d.cdofs] - d.lb, initial=np.inf)), op=MPI.MIN)
         return info
-
-    def _coulomb_hint(self):
-        """A failed Coulomb step: the Coulomb bound of the step problem, measured now, and the
-        command that measures it before a run (:func:`.friction_bound.failure_hint`)."""
-        if self.friction is None or self.friction.law != "coulomb":
-            return ""
-        return _friction_bound.failure_hint(self, self.friction.mu, _friction_bound.command_for(self))
 
     @property
     def lam_t(self):
@@ -358,15 +317,6 @@ class Integrator:
         bv = self.discretisation.B.createVecLeft()
         self.discretisation.B.mult(V, bv)
         return self.discretisation.solve_C(bv)
-
-    def boundary_gap(self, U):
-        """min over every dof of W^h on the constrained boundary (P2 mid-edge nodes included) of
-        U_c - bound, reduced over the ranks (+inf without such dofs; :mod:`~sdm_dolfinx.method.gaps`)."""
-        return _gaps.boundary_gap(self.discretisation, U.array_r)
-
-    def vertex_gap(self, U):
-        """min over the constrained vertices of U_c - bound, reduced over the ranks."""
-        return _gaps.vertex_gap(self.discretisation, U.array_r)
 
     @property
     def active(self):

@@ -68,12 +68,12 @@ class State:
 
     def vertex_gap(self) -> float:
         """min over the constrained vertices of U_c - bound, over every rank (collective)."""
-        return gaps.vertex_gap(self.discretisation, self.U)
+        return gaps.vertex_gap(self.discretisation, self.U, self.t)
 
     def boundary_gap(self) -> float:
         """min over every dof of W^h on the constrained boundary of U_c - bound, over every rank
         (collective; +inf without such dofs)."""
-        return gaps.boundary_gap(self.discretisation, self.U)
+        return gaps.boundary_gap(self.discretisation, self.U, self.t)
 
 
 def _read_only(a: npt.ArrayLike) -> npt.NDArray[np.float64]:

@@ -22,6 +22,7 @@ from dolfinx import mesh as dmesh
 
 from sdm_dolfinx.method.discretisation import Discretisation
 from sdm_dolfinx.method.errors import DiscretisationError
+from sdm_dolfinx.method.gaps import boundary_gap
 from sdm_dolfinx.run.integrator import Integrator
 from sdm_dolfinx.mpiutil import gather_rows
 from sdm_dolfinx.analysis import inspect, report
@@ -115,7 +116,7 @@ def dropped(constrain, steps=60, dt=1e-5, vy=-2000.0):
     gaps, lam = [], 0.0
     for n in range(steps):
         integ.step(U, V, n, n * dt)
-        gaps.append(integ.boundary_gap(U))
+        gaps.append(boundary_gap(integ.discretisation, U.array_r))
         lam = max(lam, COMM.allreduce(float(np.max(integ.lam, initial=0.0)), op=MPI.MAX))
     integ.destroy()
     return min(gaps), lam
