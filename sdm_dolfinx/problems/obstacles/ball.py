@@ -1,0 +1,54 @@
+"""The ball (a disc in 2-D), or with ``inside=True`` the cavity around it (a bowl)."""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from sdm_dolfinx.problems.obstacles.base import Obstacle, flag, number, vector
+
+
+def circle(c: np.ndarray, radius: float, n: int = 361) -> list[np.ndarray]:
+    """The circle about (c_x, c_y) in the plane z = 0 as a closed polyline of n points (pictures)."""
+    a = np.linspace(0.0, 2.0 * np.pi, n)
+    return [np.column_stack([c[0] + radius * np.cos(a), c[1] + radius * np.sin(a), 0.0 * a])]
+
+
+class Ball(Obstacle):
+    """inside=False: the obstacle is the ball |x - c| <= R, phi = |x - c| - R, normal (x - c)/|x - c|
+    (e_x at the centre). inside=True: the obstacle is everything outside the ball (the body moves in a
+    spherical/circular cavity, a bowl), phi = R - |x - c|, normal -(x - c)/|x - c| (-e_x at the centre).
+
+    Args:
+        centre: c (a 2-vector (x, y) is (x, y, 0): in a 2-D problem the disc).
+        radius: R > 0.
+        inside: see above.
+        motion, motion_velocity, rotation: see :class:`Obstacle`.
+    """
+
+    kind = "ball"
+
+    def __init__(self, centre: Any, radius: Any, inside: Any = False, **motion: Any) -> None:
+        self.centre = vector(centre, f"{self.kind}: centre")
+        self.radius = number(radius, f"{self.kind}: radius")
+        self.inside = flag(inside, f"{self.kind}: inside")
+        super().__init__(**motion)
+
+    def _distance0(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        d = y - self.centre[:, None]
+        r = np.linalg.norm(d, axis=0)
+        n = np.zeros_like(d)
+        n[0] = 1.0
+        n[:, r > 0] = d[:, r > 0] / r[r > 0]
+        sign = -1.0 if self.inside else 1.0
+        return sign * (r - self.radius), sign * n
+
+    @property
+    def planar(self) -> bool:
+        return bool(self.centre[2] == 0.0)
+
+    def _reference_outline(self, lo: np.ndarray, hi: np.ndarray) -> list[np.ndarray]:
+        return circle(self.centre, self.radius)
+
+    def _parameters(self) -> dict[str, Any]:
+        return {"centre": self.centre.tolist(), "radius": self.radius, "inside": self.inside}
