@@ -480,3 +480,36 @@ def test_surface_mesh_refusals(tmp_path):
     # an open curve is taken with side="normals"
     assert np.allclose(ob.SurfaceMesh(tmp_path / "open.msh", side="normals").distance(pts((0, 0)))[0],
                        [-math.cos(math.pi / 8)])
+
+
+def test_the_prefilter_finds_the_brute_force_closest_point(tmp_path):
+    # a sphere (radius 1) triangulated by gmsh: |phi| must equal the least distance to ALL its triangles
+    # (the KD-tree and disc-bound prefilter may only skip elements that cannot be nearer), near and far
+    # (far points have many near-equidistant triangles); the sign is the sphere's wherever the point is
+    # farther from the sphere than the triangles' largest deviation from it
+    import gmsh
+    from sdm_dolfinx.problems.obstacles import closest
+    gmsh.initialize()
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.model.occ.addSphere(0, 0, 0, 1)
+        gmsh.model.occ.synchronize()
+        gmsh.option.setNumber("Mesh.MeshSizeMax", 0.3)
+        gmsh.model.mesh.generate(2)
+        gmsh.write(str(tmp_path / "sphere.msh"))
+    finally:
+        gmsh.finalize()
+    o = ob.SurfaceMesh(tmp_path / "sphere.msh")
+    d = RNG.normal(size=(3, 200))
+    x = d / np.linalg.norm(d, axis=0) * RNG.uniform(0.0, 4.0, 200)
+    phi, _ = o.distance(x)
+    m = len(o.cells)
+    corners = [np.tile(o.points[o.cells[:, k]], (200, 1)) for k in range(3)]
+    q, _ = closest.on_triangles(np.repeat(x.T, m, axis=0), *corners)
+    brute = np.linalg.norm(np.repeat(x.T, m, axis=0) - q, axis=1).reshape(200, m).min(axis=1)
+    assert np.allclose(np.abs(phi), brute, rtol=0, atol=1e-14)
+    c = o.points[o.cells].mean(axis=1)
+    deviation = 1 - np.min(np.abs(np.einsum("ij,ij->i", c, o.normals)))     # 1 - the least plane distance
+    sphere = np.linalg.norm(x, axis=0) - 1
+    clear = np.abs(sphere) > deviation
+    assert 0 < deviation < 0.05 and np.all(np.sign(phi[clear]) == np.sign(sphere[clear]))

@@ -1,5 +1,5 @@
-"""Closest points on segments and triangles (vectorised over pairs), and the candidate pairs of a
-point cloud and a surface mesh found through a KD-tree of the elements' centroids.
+"""Closest points on segments and triangles (vectorised over pairs), and on a mesh of them (a KD-tree
+of the elements' centroids and a disc bound choose the candidate elements).
 
 Feature codes: 0 the element's interior (a segment's or triangle's), 1 + k its vertex k, 4 + k a
 triangle's edge k (from vertex k to vertex (k + 1) % 3).
@@ -54,31 +54,44 @@ def on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> 
     return q, feature
 
 
-class Candidates:
-    """The elements that may hold a point's closest point: the element whose centroid is nearest
-    (at the distance d0) bounds the distance by d0 (the centroid lies on it), so only elements
-    whose centroid is within d0 + (the largest centroid-to-vertex distance) can do better."""
+class Closest:
+    """Closest points on a mesh of segments or triangles. The exact distance u to the element whose
+    centroid is nearest bounds the distance from above; an element can do better only if (i) its
+    centroid is within u + (the largest centroid-to-vertex distance): a KD-tree ball query, and (ii)
+    (triangles) the distance to the disc in its plane about its centroid through its farthest vertex,
+    a lower bound of the distance to it, is <= u: this prunes the many near-equidistant elements a far
+    point's ball holds. The survivors are projected exactly."""
 
-    def __init__(self, points: np.ndarray, cells: np.ndarray) -> None:
+    def __init__(self, points: np.ndarray, cells: np.ndarray, normals: np.ndarray) -> None:
+        self.points, self.cells, self.normals = points, cells, normals
         corners = points[cells]                                   # (m, k, 3)
         self.centroids = corners.mean(axis=1)
-        self.reach = float(np.linalg.norm(corners - self.centroids[:, None], axis=2).max())
+        self.radii = np.linalg.norm(corners - self.centroids[:, None], axis=2).max(axis=1)
         self.tree = cKDTree(self.centroids)
+        self.extent = float(np.abs(points).max())
 
-    def pairs(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(point index, element index) of every candidate pair of the points x (n, 3)."""
-        d0, _ = self.tree.query(x)
-        radius = d0 * (1 + 1e-12) + self.reach * (1 + 1e-12)      # round-off must not lose the nearest
-        lists = self.tree.query_ball_point(x, radius)
-        counts = np.fromiter((len(ell) for ell in lists), dtype=np.int64, count=len(lists))
-        point = np.repeat(np.arange(len(x)), counts)
-        element = np.concatenate([np.asarray(ell, dtype=np.int64) for ell in lists]) if len(x) else \
-            np.zeros(0, dtype=np.int64)
-        return point, element
+    def project(self, x: np.ndarray, element: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(closest points, feature codes, distances) of the points x (m, 3) on the elements (m,)."""
+        corners = [self.points[self.cells[element, k]] for k in range(self.cells.shape[1])]
+        q, feature = on_segments(x, *corners) if len(corners) == 2 else on_triangles(x, *corners)
+        return q, feature, np.linalg.norm(x - q, axis=1)
 
-
-def nearest(point: np.ndarray, dist: np.ndarray, n: int) -> np.ndarray:
-    """For each of the n points, the index (into the pairs) of its pair of least ``dist``."""
-    order = np.lexsort((dist, point))
-    first = np.searchsorted(point[order], np.arange(n))
-    return order[first]
+    def __call__(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(closest points q (n, 3), feature codes, elements, distances) of the points x (n, 3)."""
+        _, first = self.tree.query(x)
+        slack = 1e-12 * (np.abs(x).max(axis=1) + self.extent)            # round-off must not lose the nearest
+        upper = self.project(x, first)[2] + slack
+        lists = self.tree.query_ball_point(x, upper + self.radii.max() + slack)
+        point = np.repeat(np.arange(len(x)), [len(ell) for ell in lists])
+        element = np.fromiter((e for ell in lists for e in ell), dtype=np.int64, count=len(point))
+        if self.cells.shape[1] == 3:
+            r = x[point] - self.centroids[element]
+            h = np.einsum("ij,ij->i", r, self.normals[element])
+            rho = np.sqrt(np.maximum(np.einsum("ij,ij->i", r, r) - h * h, 0.0))
+            lower = np.sqrt(h * h + np.maximum(rho - self.radii[element], 0.0) ** 2)
+            keep = (lower <= upper[point] + slack[point]) | (element == first[point])
+            point, element = point[keep], element[keep]
+        q, feature, dist = self.project(x[point], element)
+        order = np.lexsort((dist, point))                            # for each point, its pair of least dist
+        best = order[np.searchsorted(point[order], np.arange(len(x)))]
+        return q[best], feature[best], element[best], dist[best]

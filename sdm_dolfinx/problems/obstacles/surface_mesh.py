@@ -18,6 +18,8 @@ pseudo-normal where |x - q| <= 1e-12 times the mesh's size (x on an edge or vert
 """
 from __future__ import annotations
 
+import hashlib
+from pathlib import Path
 from typing import Any, Optional
 
 import numpy as np
@@ -91,7 +93,8 @@ def orient(points: np.ndarray, cells: np.ndarray, side: str) -> np.ndarray:
     return out
 
 
-def pseudo_normals(points: np.ndarray, cells: np.ndarray, normals: np.ndarray) -> tuple[np.ndarray, Optional[np.ndarray]]:
+def pseudo_normals(points: np.ndarray, cells: np.ndarray,
+                   normals: np.ndarray) -> tuple[np.ndarray, Optional[np.ndarray]]:
     """(vertex pseudo-normals (N, 3), edge pseudo-normals per triangle edge (m, 3, 3) or None)."""
     vertex = np.zeros_like(points)
     if cells.shape[1] == 2:
@@ -151,6 +154,7 @@ class SurfaceMesh(Obstacle):
             raise ObstacleError(f"{where}: side must be one of {', '.join(SIDES)}, got {side!r}")
         self.path, self.side = str(path), side
         points, cells = msh.read(path)
+        self.sha256 = hashlib.sha256(Path(path).read_bytes()).hexdigest()      # which file, for run.json
         self.dim, chosen = select(points, cells, dim, where)
         used, chosen = np.unique(chosen, return_inverse=True)
         self.points, self.cells = points[used], chosen.reshape(-1, self.dim)
@@ -163,20 +167,12 @@ class SurfaceMesh(Obstacle):
             self.cells = orient(self.points, self.cells, side)
         self.normals, _ = element_normals(self.points, self.cells)
         self.vertex_normals, self.edge_normals = pseudo_normals(self.points, self.cells, self.normals)
-        self._candidates = closest.Candidates(self.points, self.cells)
+        self._closest = closest.Closest(self.points, self.cells, self.normals)
         super().__init__(**motion)
 
     def _distance0(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         x = y.T
-        point, element = self._candidates.pairs(x)
-        corners = [self.points[self.cells[element, k]] for k in range(self.dim)]
-        if self.dim == 2:
-            q, feature = closest.on_segments(x[point], *corners)
-        else:
-            q, feature = closest.on_triangles(x[point], *corners)
-        dist = np.linalg.norm(x[point] - q, axis=1)
-        best = closest.nearest(point, dist, len(x))
-        q, feature, element, dist = q[best], feature[best], element[best], dist[best]
+        q, feature, element, dist = self._closest(x)
         pseudo = self.normals[element].copy()                       # interior: the element normal
         at_vertex = (feature >= closest.VERTEX) & (feature < closest.EDGE)
         pseudo[at_vertex] = self.vertex_normals[self.cells[element[at_vertex], feature[at_vertex] - closest.VERTEX]]
@@ -200,4 +196,5 @@ class SurfaceMesh(Obstacle):
         return list(self.points[self.cells])                        # each line a polyline of 2 points
 
     def _parameters(self) -> dict[str, Any]:
-        return {"path": self.path, "side": self.side, "dim": self.dim, "elements": int(len(self.cells))}
+        return {"path": self.path, "side": self.side, "dim": self.dim, "elements": int(len(self.cells)),
+                "sha256": self.sha256}
