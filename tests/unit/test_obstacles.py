@@ -375,6 +375,12 @@ def test_a_gmsh_circle_agrees_with_the_disc_to_its_sagitta(tmp_path):
     # the distance to a convex polygon is differentiable outside it (away from it by the step)
     out = x[:, phi_m > 1e-3]
     check_normal_is_gradient(mesh, out)
+    # its outline: the polygon's lines (every point on the circle to the sagitta), clipped to the box
+    lines = mesh.outline(0.0, ((-2, -2, 0), (0, 2, 0)))
+    allp = np.concatenate(lines)
+    assert allp[:, 0].max() <= 0 and np.all(np.abs(np.linalg.norm(allp, axis=1) - R) <= sagitta)
+    d = json.loads(json.dumps(mesh.describe()))
+    assert d["parameters"]["elements"] == len(mesh.cells) and len(d["parameters"]["sha256"]) == 64
 
 
 @pytest.mark.parametrize("cw", [False, True])

@@ -1,10 +1,6 @@
-"""Rigid obstacles as signed distances: phi(x, t) > 0 in the free space, < 0 inside the obstacle,
-with the unit normal grad phi and a prescribed rigid motion (docs/obstacles.md).
-
-One registry of shapes: :func:`register` (kind, class), :func:`names`, :func:`get`, :func:`make`
-(kind, **parameters, refused in one line :class:`ObstacleError` when the kind is unknown or a
-parameter is missing, unknown or wrong). A new shape is one new file (a subclass of
-:class:`Obstacle`) and one ``register`` line here. Geometry only: no dolfinx, no solver.
+"""Rigid obstacles as signed distances phi(x, t) (> 0 in the free space) with their normals grad phi and
+a rigid motion (docs/obstacles.md); geometry only. One registry of shapes (:func:`register`, :func:`names`,
+:func:`get`, :func:`make`): a new shape is one file (an :class:`Obstacle`) and one ``register`` line here.
 """
 from __future__ import annotations
 

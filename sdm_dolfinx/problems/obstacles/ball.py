@@ -8,6 +8,18 @@ import numpy as np
 from sdm_dolfinx.problems.obstacles.base import Obstacle, flag, number, vector
 
 
+def radial(d: np.ndarray, radius: float, inside: bool, centre_normal: np.ndarray,
+           off: Any = True) -> tuple[np.ndarray, np.ndarray]:
+    """(phi, normal) for the distance |d| to a centre (point or axis): sign (|d| - R), sign d/|d|, sign = -1
+    when ``inside``; ``centre_normal`` where |d| == 0 (or not ``off``)."""
+    r = np.linalg.norm(d, axis=0)
+    n = np.repeat(centre_normal[:, None], d.shape[1], axis=1)
+    ok = (r > 0) & off
+    n[:, ok] = d[:, ok] / r[ok]
+    sign = -1.0 if inside else 1.0
+    return sign * (r - radius), sign * n
+
+
 def circle(c: np.ndarray, radius: float, n: int = 361) -> list[np.ndarray]:
     """The circle about (c_x, c_y) in the plane z = 0 as a closed polyline of n points (pictures)."""
     a = np.linspace(0.0, 2.0 * np.pi, n)
@@ -35,13 +47,7 @@ class Ball(Obstacle):
         super().__init__(**motion)
 
     def _distance0(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        d = y - self.centre[:, None]
-        r = np.linalg.norm(d, axis=0)
-        n = np.zeros_like(d)
-        n[0] = 1.0
-        n[:, r > 0] = d[:, r > 0] / r[r > 0]
-        sign = -1.0 if self.inside else 1.0
-        return sign * (r - self.radius), sign * n
+        return radial(y - self.centre[:, None], self.radius, self.inside, np.array([1.0, 0.0, 0.0]))
 
     @property
     def planar(self) -> bool:

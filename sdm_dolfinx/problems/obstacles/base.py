@@ -76,20 +76,11 @@ def _rotate(v: np.ndarray, angle: float) -> np.ndarray:
     return np.vstack([c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]])
 
 
-def _name(f: Callable[..., Any]) -> str:
-    return str(getattr(f, "__qualname__", None) or repr(f))
-
-
 class Obstacle:
     """A rigid obstacle: a subclass gives :meth:`_distance0` (phi and normal at the declared position),
-    :meth:`_parameters` and (2-D pictures) :meth:`_reference_outline`; this class adds the motion.
-
-    Args:
-        motion: ``None`` (fixed) or a callable t -> (3,) (or (2,)) translation s(t).
-        motion_velocity: optional callable t -> (3,) giving s'(t) (else a central difference).
-        rotation: optional ``(centre, omega)``: a rotation about the axis parallel to z through
-            ``centre`` at the angular velocity ``omega`` (rad per time unit, counter-clockwise).
-    """
+    :meth:`_parameters` and (2-D pictures) :meth:`_reference_outline`; this class adds the motion: ``motion``
+    None or a callable t -> (3,) (or (2,)) translation s(t), ``motion_velocity`` an optional callable giving
+    s'(t), ``rotation`` an optional (centre, omega), omega in rad per time unit, counter-clockwise."""
 
     kind: str = "obstacle"
 
@@ -111,7 +102,6 @@ class Obstacle:
         self._shift(0.0)                       # a wrong motion callable fails now, not in the run
         self._shift_rate(0.0)
 
-    # -- the shape (subclasses) --------------------------------------------------------------------
     def _distance0(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(phi, normal) at the points y (3, n) for the obstacle at its declared position."""
         raise NotImplementedError
@@ -128,7 +118,6 @@ class Obstacle:
         """True when the obstacle can serve a 2-D problem: its normals on the plane z = 0 lie in it."""
         return False
 
-    # -- motion ------------------------------------------------------------------------------------
     @property
     def moves(self) -> bool:
         """True when a motion (translation or rotation) is given."""
@@ -155,7 +144,6 @@ class Obstacle:
         c = self._centre[:, None]
         return c + _rotate(y - c, self._omega * t) + self._shift(t)[:, None]
 
-    # -- the interface -----------------------------------------------------------------------------
     def distance(self, x: Any, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """(phi, normal) at the points x (3, n) at the time t: phi (n,) the signed distance to the
         surface (> 0 in the free space, < 0 inside the obstacle), normal (3, n) the unit vector
@@ -173,8 +161,8 @@ class Obstacle:
         """JSON-able: kind, parameters, motion ("fixed" or what moves it)."""
         motion: Any = {} if self.moves else "fixed"
         if self._motion is not None:
-            motion.update({"translation": _name(self._motion), "s(0)": self._shift(0.0).tolist(),
-                           "velocity": (_name(self._motion_velocity) if self._motion_velocity is not None
+            motion.update({"translation": getattr(self._motion, "__qualname__", repr(self._motion)), "s(0)": self._shift(0.0).tolist(),
+                           "velocity": (getattr(self._motion_velocity, "__qualname__", "given") if self._motion_velocity is not None
                                         else f"central difference, h = {FD_STEP:g} max(1, |t|)")})
         if self._omega != 0.0:
             motion["rotation"] = {"centre": self._centre.tolist(), "omega": self._omega}

@@ -5,7 +5,7 @@ from typing import Any
 
 import numpy as np
 
-from sdm_dolfinx.problems.obstacles.ball import circle
+from sdm_dolfinx.problems.obstacles.ball import circle, radial
 from sdm_dolfinx.problems.obstacles.base import Obstacle, ObstacleError, flag, number, vector
 
 
@@ -46,12 +46,8 @@ class Cylinder(Obstacle):
     def _distance0(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         full = y - self.point[:, None]
         d = full - np.outer(self.axis, self.axis @ full)
-        r = np.linalg.norm(d, axis=0)
-        n = np.repeat(self._on_axis[:, None], y.shape[1], axis=1)
-        ok = r > ON_AXIS * (np.linalg.norm(full, axis=0) + self.radius)      # off the axis beyond round-off
-        n[:, ok] = d[:, ok] / r[ok]
-        sign = -1.0 if self.inside else 1.0
-        return sign * (r - self.radius), sign * n
+        off = np.linalg.norm(d, axis=0) > ON_AXIS * (np.linalg.norm(full, axis=0) + self.radius)   # beyond round-off
+        return radial(d, self.radius, self.inside, self._on_axis, off)
 
     @property
     def planar(self) -> bool:
