@@ -519,3 +519,21 @@ def test_the_prefilter_finds_the_brute_force_closest_point(tmp_path):
     sphere = np.linalg.norm(x, axis=0) - 1
     clear = np.abs(sphere) > deviation
     assert 0 < deviation < 0.05 and np.all(np.sign(phi[clear]) == np.sign(sphere[clear]))
+
+
+def test_a_failing_motion_is_refused_in_one_line():
+    # a motion defined for t >= 0 only: the central difference at t = 0 needs s(-h); the message says
+    # why and what to give instead; with motion_velocity the obstacle is accepted
+    s = lambda t: (0.0, -math.sqrt(t))                                  # noqa: E731
+    with pytest.raises(ObstacleError) as e:
+        ob.Ball((0, 0), 1.0, motion=s)
+    assert "motion(-1e-06) raised ValueError" in one_line(e) and "give motion_velocity" in one_line(e)
+    o = ob.Ball((0, 0), 1.0, motion=s, motion_velocity=lambda t: (0.0, -0.5 / math.sqrt(t) if t > 0 else 0.0))
+    assert np.allclose(o.distance(pts((0, 0)), 4.0)[0], [1.0])           # the centre at (0, -2): |x - c| - 1
+
+
+def test_no_points():
+    for o in (ob.HalfSpace((0, 0), (0, 1)), ob.Ball((0, 0), 1), ob.Cylinder((0, 0, 0), (0, 0, 1), 1),
+              ob.Wedge((0, 0), (1, 1), (-1, 1))):
+        phi, n = o.distance(np.zeros((3, 0)))
+        assert phi.shape == (0,) and n.shape == (3, 0) and o.velocity(np.zeros((3, 0)), 0.0).shape == (3, 0)

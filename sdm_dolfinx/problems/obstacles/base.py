@@ -50,7 +50,7 @@ def number(value: Any, what: str, positive: bool = True) -> float:
         r = float(value)
     except (TypeError, ValueError):
         r = math.nan
-    if not (math.isfinite(r) and (r > 0.0 or not positive)) or isinstance(value, (bool, str)):
+    if not (math.isfinite(r) and (r > 0.0 or not positive)) or isinstance(value, (bool, np.bool_, str)):
         raise ObstacleError(f"{what} must be a finite number{' > 0' if positive else ''}, got {value!r}")
     return r
 
@@ -123,16 +123,25 @@ class Obstacle:
         """True when a motion (translation or rotation) is given."""
         return self._motion is not None or self._omega != 0.0
 
+    def _call(self, name: str, f: Callable[[float], Any], t: float) -> np.ndarray:
+        """f(t), a user's callable, as a (3,) vector; its failure in one line (the cause chained)."""
+        try:
+            value = f(t)
+        except Exception as exc:
+            hint = " (the central difference evaluates s at t - h: give motion_velocity)" if t < 0 else ""
+            raise ObstacleError(f"{self.kind}: {name}({t!r}) raised {type(exc).__name__}: {exc}{hint}") from exc
+        return vector(value, f"{self.kind}: {name}({t!r})")
+
     def _shift(self, t: float) -> np.ndarray:
         """s(t) (3,)."""
-        return np.zeros(3) if self._motion is None else vector(self._motion(t), f"{self.kind}: motion({t!r})")
+        return np.zeros(3) if self._motion is None else self._call("motion", self._motion, t)
 
     def _shift_rate(self, t: float) -> np.ndarray:
         """s'(t) (3,): the given motion_velocity, else the central difference with h = FD_STEP max(1, |t|)."""
         if self._motion is None:
             return np.zeros(3)
         if self._motion_velocity is not None:
-            return vector(self._motion_velocity(t), f"{self.kind}: motion_velocity({t!r})")
+            return self._call("motion_velocity", self._motion_velocity, t)
         h = FD_STEP * max(1.0, abs(t))
         return (self._shift(t + h) - self._shift(t - h)) / (2.0 * h)
 
@@ -161,9 +170,11 @@ class Obstacle:
         """JSON-able: kind, parameters, motion ("fixed" or what moves it)."""
         motion: Any = {} if self.moves else "fixed"
         if self._motion is not None:
-            motion.update({"translation": getattr(self._motion, "__qualname__", repr(self._motion)), "s(0)": self._shift(0.0).tolist(),
-                           "velocity": (getattr(self._motion_velocity, "__qualname__", "given") if self._motion_velocity is not None
-                                        else f"central difference, h = {FD_STEP:g} max(1, |t|)")})
+            given = self._motion_velocity
+            motion.update({"translation": getattr(self._motion, "__qualname__", repr(self._motion)),
+                           "s(0)": self._shift(0.0).tolist(),
+                           "velocity": getattr(given, "__qualname__", "given") if given is not None else
+                           f"central difference, h = {FD_STEP:g} max(1, |t|)"})
         if self._omega != 0.0:
             motion["rotation"] = {"centre": self._centre.tolist(), "omega": self._omega}
         return {"kind": self.kind, "parameters": self._parameters(), "motion": motion}

@@ -9,12 +9,10 @@ or "inside" a closed curve/surface (each component re-oriented from the sign of 
 so the file's orientation does not matter; components must not be nested), or "normals": the side the
 element normals point to, as the file orients them (closed or not; an open sheet's distance is two-sided).
 
-The sign of phi is that of (x - q).N, q the closest point, N the pseudo-normal of the feature q lies on:
-the element normal (an element's interior), the sum of the adjacent elements' unit normals (a 2-D vertex,
-a 3-D edge), the angle-weighted sum of the incident triangles' unit normals (a 3-D vertex): right at
-convex and concave corners (Baerentzen & Aanaes, IEEE TVCG 11, 2005). normal = grad phi = sign (x - q)/|x - q|
-(exactly the element normal, on both sides, when q is in an element's interior), and the normalised
-pseudo-normal where |x - q| <= 1e-12 times the mesh's size (x on an edge or vertex).
+The sign of phi is that of (x - q).N, q the closest point, N the pseudo-normal of its feature (element:
+its normal; 2-D vertex, 3-D edge: the sum of the adjacent unit normals; 3-D vertex: their angle-weighted
+sum; Baerentzen & Aanaes 2005: right at convex and concave corners). normal = grad phi = sign (x - q)/|phi|
+(the element normal if q is inside an element; the unit pseudo-normal if |phi| <= 1e-12 the mesh's size).
 """
 from __future__ import annotations
 
@@ -152,7 +150,7 @@ class SurfaceMesh(Obstacle):
         where = f"{self.kind} {str(path)!r}"
         if side not in SIDES:
             raise ObstacleError(f"{where}: side must be one of {', '.join(SIDES)}, got {side!r}")
-        self.path, self.side = str(path), side
+        self.path, self.side = str(Path(path).resolve()), side
         points, cells = msh.read(path)
         self.sha256 = hashlib.sha256(Path(path).read_bytes()).hexdigest()      # which file, for run.json
         self.dim, chosen = select(points, cells, dim, where)

@@ -20,7 +20,7 @@ class Wedge(Obstacle):
     larger d_i; on the bisector (d1 == d2) the normalised n1 + n2. Outside C: phi the Euclidean
     distance to C, i.e. to the nearest of face 1 (the foot x - d1 n1 when it lies in C), face 2, and
     the edge (the apex line a + s e, e = n1 x n2 / |n1 x n2|; the apex in 2-D), normal (x - q)/phi
-    for q that nearest point; on the edge itself (phi = 0, q = x) the normalised n1 + n2.
+    for q that nearest point (on the edge itself, a tie inside: the normalised n1 + n2).
 
     Args:
         apex: a, a point of the edge (the corner in 2-D).
@@ -61,8 +61,7 @@ class Wedge(Obstacle):
             dist = cand[which, np.arange(cand.shape[1])]
             n = np.where(which == 0, self.n1[:, None], self.n2[:, None])
             edge = which == 2
-            n[:, edge] = radial[:, edge] / np.where(dist[edge] > 0, dist[edge], 1.0)
-            n[:, edge & (dist == 0)] = self._mean[:, None]
+            n[:, edge] = radial[:, edge] / dist[edge]                    # > 0: x is outside C
             phi[out], normal[:, out] = dist, n
         return phi, normal
 
@@ -71,14 +70,10 @@ class Wedge(Obstacle):
         return bool(self.n1[2] == 0.0 and self.n2[2] == 0.0)
 
     def _reference_outline(self, lo: np.ndarray, hi: np.ndarray) -> list[np.ndarray]:
-        a = self.apex.copy()
-        a[2] = 0.0
+        a = self.apex * [1.0, 1.0, 0.0]
         reach = float(np.linalg.norm(hi - lo) + np.linalg.norm((lo + hi) / 2 - a))
-        t1 = np.array([-self.n1[1], self.n1[0], 0.0])           # along face 1, away from the edge into C
-        t1 *= -np.sign(t1 @ self.n2)
-        t2 = np.array([-self.n2[1], self.n2[0], 0.0])
-        t2 *= -np.sign(t2 @ self.n1)
-        return [np.array([a + reach * t1, a, a + reach * t2])]
+        # along the faces away from the edge: (n1 x e).n2 = (e x n2).n1 = -|n1 x n2| < 0
+        return [np.array([a + reach * np.cross(self.n1, self.edge), a, a + reach * np.cross(self.edge, self.n2)])]
 
     def _parameters(self) -> dict[str, Any]:
         return {"apex": self.apex.tolist(), "normal1": self.n1.tolist(), "normal2": self.n2.tolist()}
