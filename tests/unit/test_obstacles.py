@@ -537,3 +537,26 @@ def test_no_points():
               ob.Wedge((0, 0), (1, 1), (-1, 1))):
         phi, n = o.distance(np.zeros((3, 0)))
         assert phi.shape == (0,) and n.shape == (3, 0) and o.velocity(np.zeros((3, 0)), 0.0).shape == (3, 0)
+
+
+def test_a_tetrahedron_and_its_3d_refusals(tmp_path):
+    # the unit tetrahedron (0, e_x, e_y, e_z) with outward (counter-clockwise) triangles; its signed
+    # distance at chosen points: below the face z = 0 by 0.5 (normal -e_z), inside near the origin
+    # (-0.1: the nearest of the three coordinate faces), beyond the vertex e_z (distance 1, normal e_z),
+    # beyond the slanted face x + y + z = 1 (distance (s - 1)/sqrt 3 along (1, 1, 1)/sqrt 3)
+    p = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float)
+    tri = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    o = ob.SurfaceMesh(write_msh22(tmp_path / "tet.msh", p, tri), side="normals")
+    phi, n = o.distance(pts((0.2, 0.2, -0.5), (0.1, 0.15, 0.2), (0, 0, 2), (0.5, 0.5, 0.5)))
+    assert np.allclose(phi, [0.5, -0.1, 1, 0.5 * math.sqrt(3) - 1 / math.sqrt(3)], atol=1e-14)
+    assert np.allclose(n[:, 0], [0, 0, -1]) and np.allclose(n[:, 1], [-1, 0, 0]) and np.allclose(n[:, 2], [0, 0, 1])
+    assert np.allclose(n[:, 3], 1 / math.sqrt(3))
+    flipped = tri.copy()
+    flipped[3] = flipped[3, ::-1]
+    for cells, params, words in ((tri[:3], {}, "not closed"), (flipped, {}, "not consistently oriented"),
+                                 (flipped, {"side": "normals"}, "not consistently oriented")):
+        with pytest.raises(ObstacleError) as e:
+            ob.SurfaceMesh(write_msh22(tmp_path / "bad.msh", p, cells), **params)
+        assert words in one_line(e)
+    # the same tetrahedron as a cavity: the signs flip
+    assert np.allclose(ob.SurfaceMesh(tmp_path / "tet.msh", side="inside").distance(pts((0, 0, 2)))[0], [-1])

@@ -128,7 +128,8 @@ class Obstacle:
         try:
             value = f(t)
         except Exception as exc:
-            hint = " (the central difference evaluates s at t - h: give motion_velocity)" if t < 0 else ""
+            fd = name == "motion" and t < 0 and self._motion_velocity is None
+            hint = " (the central difference evaluates s at t - h: give motion_velocity)" if fd else ""
             raise ObstacleError(f"{self.kind}: {name}({t!r}) raised {type(exc).__name__}: {exc}{hint}") from exc
         return vector(value, f"{self.kind}: {name}({t!r})")
 
