@@ -5,11 +5,11 @@ from typing import Any
 
 import numpy as np
 
-from sdm_dolfinx.problems.obstacles.base import Obstacle, flag, number, vector
+from sdm_dolfinx.problems.obstacles.base import Array, Obstacle, flag, number, vector
 
 
-def radial(d: np.ndarray, radius: float, inside: bool, centre_normal: np.ndarray,
-           off: Any = True) -> tuple[np.ndarray, np.ndarray]:
+def radial(d: Array, radius: float, inside: bool, centre_normal: Array,
+           off: Any = True) -> tuple[Array, Array]:
     """(phi, normal) for the distance |d| to a centre (point or axis): sign (|d| - R), sign d/|d|, sign = -1
     when ``inside``; ``centre_normal`` where |d| == 0 (or not ``off``)."""
     r = np.linalg.norm(d, axis=0)
@@ -20,7 +20,7 @@ def radial(d: np.ndarray, radius: float, inside: bool, centre_normal: np.ndarray
     return sign * (r - radius), sign * n
 
 
-def circle(c: np.ndarray, radius: float, n: int = 361) -> list[np.ndarray]:
+def circle(c: Array, radius: float, n: int = 361) -> list[Array]:
     """The circle about (c_x, c_y) in the plane z = 0 as a closed polyline of n points (pictures)."""
     a = np.linspace(0.0, 2.0 * np.pi, n)
     return [np.column_stack([c[0] + radius * np.cos(a), c[1] + radius * np.sin(a), 0.0 * a])]
@@ -32,9 +32,7 @@ class Ball(Obstacle):
     spherical/circular cavity, a bowl), phi = R - |x - c|, normal -(x - c)/|x - c| (-e_x at the centre).
 
     Args:
-        centre: c (a 2-vector (x, y) is (x, y, 0): in a 2-D problem the disc).
-        radius: R > 0.
-        inside: see above.
+        centre, radius, inside: c (2 numbers (x, y) are (x, y, 0): the disc in 2-D), R > 0, see above.
         motion, motion_velocity, rotation: see :class:`Obstacle`.
     """
 
@@ -46,14 +44,14 @@ class Ball(Obstacle):
         self.inside = flag(inside, f"{self.kind}: inside")
         super().__init__(**motion)
 
-    def _distance0(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _distance0(self, y: Array) -> tuple[Array, Array]:
         return radial(y - self.centre[:, None], self.radius, self.inside, np.array([1.0, 0.0, 0.0]))
 
     @property
     def planar(self) -> bool:
         return bool(self.centre[2] == 0.0)
 
-    def _reference_outline(self, lo: np.ndarray, hi: np.ndarray) -> list[np.ndarray]:
+    def _reference_outline(self, lo: Array, hi: Array) -> list[Array]:
         return circle(self.centre, self.radius)
 
     def _parameters(self) -> dict[str, Any]:

@@ -19,8 +19,12 @@ import math
 from typing import Any, Callable, Optional, Sequence
 
 import numpy as np
+import numpy.typing as npt
 
 from sdm_dolfinx.problems.errors import ProblemInputError
+
+#: the arrays of this package (points (3, n), normals, cells, ...)
+Array = npt.NDArray[Any]
 
 #: the relative step of the central difference of s(t) when no motion_velocity is given
 FD_STEP = 1e-6
@@ -30,7 +34,7 @@ class ObstacleError(ProblemInputError):
     """An obstacle's parameters refused (one line)."""
 
 
-def vector(value: Any, what: str, unit: bool = False) -> np.ndarray:
+def vector(value: Any, what: str, unit: bool = False) -> Array:
     """``value`` as a finite (3,) float array (a 2-vector gets z = 0); ``unit``: normalised, not zero."""
     try:
         v = np.asarray(value, dtype=float)
@@ -62,15 +66,15 @@ def flag(value: Any, what: str) -> bool:
     return bool(value)
 
 
-def points(x: Any) -> np.ndarray:
+def points(x: Any) -> Array:
     """The points ``x`` as a finite float array (3, n)."""
-    x = np.asarray(x, dtype=float)
-    if x.ndim != 2 or x.shape[0] != 3 or not np.all(np.isfinite(x)):
-        raise ObstacleError(f"obstacle points must be a finite array (3, n) (dolfinx's layout), got shape {x.shape}")
-    return x
+    a: Array = np.asarray(x, dtype=float)
+    if a.ndim != 2 or a.shape[0] != 3 or not np.all(np.isfinite(a)):
+        raise ObstacleError(f"obstacle points must be a finite array (3, n) (dolfinx's layout), got shape {a.shape}")
+    return a
 
 
-def _rotate(v: np.ndarray, angle: float) -> np.ndarray:
+def _rotate(v: Array, angle: float) -> Array:
     """v (3, n) rotated by ``angle`` about e_z."""
     c, s = math.cos(angle), math.sin(angle)
     return np.vstack([c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]])
@@ -102,11 +106,11 @@ class Obstacle:
         self._shift(0.0)                       # a wrong motion callable fails now, not in the run
         self._shift_rate(0.0)
 
-    def _distance0(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _distance0(self, y: Array) -> tuple[Array, Array]:
         """(phi, normal) at the points y (3, n) for the obstacle at its declared position."""
         raise NotImplementedError
 
-    def _reference_outline(self, lo: np.ndarray, hi: np.ndarray) -> list[np.ndarray]:
+    def _reference_outline(self, lo: Array, hi: Array) -> list[Array]:
         """Polylines (k, 3) of the declared surface's section z = 0 crossing the box [lo, hi] (x, y)."""
         return []
 
@@ -123,7 +127,7 @@ class Obstacle:
         """True when a motion (translation or rotation) is given."""
         return self._motion is not None or self._omega != 0.0
 
-    def _call(self, name: str, f: Callable[[float], Any], t: float) -> np.ndarray:
+    def _call(self, name: str, f: Callable[[float], Any], t: float) -> Array:
         """f(t), a user's callable, as a (3,) vector; its failure in one line (the cause chained)."""
         try:
             value = f(t)
@@ -133,11 +137,11 @@ class Obstacle:
             raise ObstacleError(f"{self.kind}: {name}({t!r}) raised {type(exc).__name__}: {exc}{hint}") from exc
         return vector(value, f"{self.kind}: {name}({t!r})")
 
-    def _shift(self, t: float) -> np.ndarray:
+    def _shift(self, t: float) -> Array:
         """s(t) (3,)."""
         return np.zeros(3) if self._motion is None else self._call("motion", self._motion, t)
 
-    def _shift_rate(self, t: float) -> np.ndarray:
+    def _shift_rate(self, t: float) -> Array:
         """s'(t) (3,): the given motion_velocity, else the central difference with h = FD_STEP max(1, |t|)."""
         if self._motion is None:
             return np.zeros(3)
@@ -146,15 +150,16 @@ class Obstacle:
         h = FD_STEP * max(1.0, abs(t))
         return (self._shift(t + h) - self._shift(t - h)) / (2.0 * h)
 
-    def _to_reference(self, x: np.ndarray, t: float) -> np.ndarray:
+    def _to_reference(self, x: Array, t: float) -> Array:
         c = self._centre[:, None]
         return c + _rotate(x - self._shift(t)[:, None] - c, -self._omega * t)
 
-    def _from_reference(self, y: np.ndarray, t: float) -> np.ndarray:
+    def _from_reference(self, y: Array, t: float) -> Array:
         c = self._centre[:, None]
-        return c + _rotate(y - c, self._omega * t) + self._shift(t)[:, None]
+        x: Array = c + _rotate(y - c, self._omega * t) + self._shift(t)[:, None]
+        return x
 
-    def distance(self, x: Any, t: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    def distance(self, x: Any, t: float = 0.0) -> tuple[Array, Array]:
         """(phi, normal) at the points x (3, n) at the time t: phi (n,) the signed distance to the
         surface (> 0 in the free space, < 0 inside the obstacle), normal (3, n) the unit vector
         grad phi (from the obstacle into the free space; where grad phi is undefined, the vector
@@ -162,10 +167,11 @@ class Obstacle:
         phi, normal = self._distance0(self._to_reference(points(x), float(t)))
         return phi, _rotate(normal, self._omega * float(t))
 
-    def velocity(self, x: Any, t: float) -> np.ndarray:
+    def velocity(self, x: Any, t: float) -> Array:
         """The velocity (3, n) of the obstacle's material point at x at the time t (0 if fixed)."""
         r = points(x) - self._shift(float(t))[:, None] - self._centre[:, None]
-        return self._shift_rate(float(t))[:, None] + self._omega * np.vstack([-r[1], r[0], 0.0 * r[2]])  # w e_z x r
+        v: Array = self._shift_rate(float(t))[:, None] + self._omega * np.vstack([-r[1], r[0], 0.0 * r[2]])  # w e_z x r
+        return v
 
     def describe(self) -> dict[str, Any]:
         """JSON-able: kind, parameters, motion ("fixed" or what moves it)."""
@@ -180,7 +186,7 @@ class Obstacle:
             motion["rotation"] = {"centre": self._centre.tolist(), "omega": self._omega}
         return {"kind": self.kind, "parameters": self._parameters(), "motion": motion}
 
-    def outline(self, t: float, box: Sequence[Any]) -> list[np.ndarray]:
+    def outline(self, t: float, box: Sequence[Any]) -> list[Array]:
         """Polylines (k, 3) of the surface's section z = 0 at the time t, clipped to the box ``(lo, hi)``
         (x and y), for pictures; [] for a box with a z extent (3-D) or a shape that is not planar."""
         lo, hi = (vector(b, "outline: the box's corner") for b in box)
@@ -197,7 +203,7 @@ class Obstacle:
         return out
 
 
-def clip_polyline(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> list[np.ndarray]:
+def clip_polyline(p: Array, lo: Array, hi: Array) -> list[Array]:
     """The pieces of the polyline p (k, 3) inside the rectangle [lo, hi] (x and y): Liang-Barsky on
     every segment, a piece continued while its segments join."""
     a, b = p[:-1], p[1:]
@@ -210,7 +216,7 @@ def clip_polyline(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> list[np.ndar
             t1 = np.where(pk > 0, np.minimum(t1, r), np.where((pk == 0) & (qk < 0), -1.0, t1))
     start = np.where((t0 == 0)[:, None], a, a + t0[:, None] * d)        # the ends exactly, so pieces join
     end = np.where((t1 == 1)[:, None], b, a + t1[:, None] * d)
-    pieces: list[list[np.ndarray]] = []
+    pieces: list[list[Array]] = []
     for i in np.flatnonzero(t0 <= t1):
         if pieces and i > 0 and t0[i] == 0 and t1[i - 1] == 1 and t0[i - 1] <= t1[i - 1]:
             pieces[-1].append(end[i])

@@ -1,18 +1,19 @@
-"""Closest points on segments and triangles (vectorised over pairs), and on a mesh of them (a KD-tree
-of the elements' centroids and a disc bound choose the candidate elements).
-
-Feature codes: 0 the element's interior (a segment's or triangle's), 1 + k its vertex k, 4 + k a
-triangle's edge k (from vertex k to vertex (k + 1) % 3).
+"""Closest points on segments and triangles (vectorised over pairs), and on a mesh of them. Feature codes:
+0 the element's interior, 1 + k its vertex k, 4 + k a triangle's edge k (vertex k to vertex (k + 1) % 3).
 """
 from __future__ import annotations
+
+from typing import Any
 
 import numpy as np
 from scipy.spatial import cKDTree
 
+from sdm_dolfinx.problems.obstacles.base import Array
+
 INTERIOR, VERTEX, EDGE = 0, 1, 4
 
 
-def on_segments(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def on_segments(p: Array, a: Array, b: Array) -> tuple[Array, Array]:
     """(closest points (m, 3), feature codes (m,)) of the points p (m, 3) on the segments [a, b]."""
     ab = b - a
     t = np.einsum("ij,ij->i", p - a, ab) / np.einsum("ij,ij->i", ab, ab)
@@ -21,11 +22,11 @@ def on_segments(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray
     return a + t[:, None] * ab, feature
 
 
-def on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def on_triangles(p: Array, a: Array, b: Array, c: Array) -> tuple[Array, Array]:
     """(closest points (m, 3), feature codes (m,)) of the points p on the triangles (a, b, c):
     Ericson, Real-Time Collision Detection (2005), 5.1.5, each Voronoi region tested in its order
     (the first that holds wins)."""
-    def dot(u, v):
+    def dot(u: Array, v: Array) -> Any:
         return np.einsum("ij,ij->i", u, v)
 
     ab, ac, ap, bp, cp = b - a, c - a, p - a, p - b, p - c
@@ -35,7 +36,7 @@ def on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> 
     feature = np.full(len(p), -1)
     done = np.zeros(len(p), dtype=bool)
 
-    def take(mask, point, code):
+    def take(mask: Array, point: Array, code: int) -> None:
         m = mask & ~done
         q[m] = point[m] if point.ndim == 2 else point
         feature[m] = code
@@ -55,14 +56,12 @@ def on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> 
 
 
 class Closest:
-    """Closest points on a mesh of segments or triangles. The exact distance u to the element whose
-    centroid is nearest bounds the distance from above; an element can do better only if (i) its
-    centroid is within u + (the largest centroid-to-vertex distance): a KD-tree ball query, and (ii)
-    (triangles) the distance to the disc in its plane about its centroid through its farthest vertex,
-    a lower bound of the distance to it, is <= u: this prunes the many near-equidistant elements a far
-    point's ball holds. The survivors are projected exactly."""
+    """Closest points on a mesh of segments or triangles: the distance u to the element of the nearest
+    centroid bounds it; an element can do better only if its centroid is within u + (the largest centroid-
+    to-vertex distance) (a KD-tree query) and (triangles) its disc (in its plane, about its centroid, through
+    its farthest vertex) is within u (this prunes a far point's many near-equidistant elements)."""
 
-    def __init__(self, points: np.ndarray, cells: np.ndarray, normals: np.ndarray) -> None:
+    def __init__(self, points: Array, cells: Array, normals: Array) -> None:
         self.points, self.cells, self.normals = points, cells, normals
         corners = points[cells]                                   # (m, k, 3)
         self.centroids = corners.mean(axis=1)
@@ -70,13 +69,13 @@ class Closest:
         self.tree = cKDTree(self.centroids)
         self.extent = float(np.abs(points).max())
 
-    def project(self, x: np.ndarray, element: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def project(self, x: Array, element: Array) -> tuple[Array, Array, Array]:
         """(closest points, feature codes, distances) of the points x (m, 3) on the elements (m,)."""
         corners = [self.points[self.cells[element, k]] for k in range(self.cells.shape[1])]
         q, feature = on_segments(x, *corners) if len(corners) == 2 else on_triangles(x, *corners)
         return q, feature, np.linalg.norm(x - q, axis=1)
 
-    def __call__(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def __call__(self, x: Array) -> tuple[Array, Array, Array, Array]:
         """(closest points q (n, 3), feature codes, elements, distances) of the points x (n, 3)."""
         _, first = self.tree.query(x)
         slack = 1e-12 * (np.abs(x).max(axis=1) + self.extent)            # round-off must not lose the nearest

@@ -6,26 +6,21 @@ from typing import Any
 import numpy as np
 
 from sdm_dolfinx.problems.obstacles.ball import circle, radial
-from sdm_dolfinx.problems.obstacles.base import Obstacle, ObstacleError, flag, number, vector
-
+from sdm_dolfinx.problems.obstacles.base import Array, Obstacle, ObstacleError, flag, number, vector
 
 #: a point within this relative distance of the axis (round-off of the projection) is on it
 ON_AXIS = 1e-14
 
 
 class Cylinder(Obstacle):
-    """The distance to the axis line {p + s a}: r = |(x - p) - ((x - p).a) a|. inside=False: the
-    obstacle is the solid cylinder r <= R, phi = r - R, normal the radial unit vector; inside=True:
-    the obstacle is everything outside it, phi = R - r, normal minus the radial one. On the axis the
-    normal is (for inside=False; its opposite for inside=True) the unit vector a x e_k normalised, e_k
-    the coordinate axis least aligned with a (on it: r <= 1e-14 (|x - p| + R), the projection's round-off).
+    """r = |(x - p) - ((x - p).a) a| the distance to the axis line: inside=False, the obstacle is the solid
+    cylinder r <= R, phi = r - R, normal the radial unit vector; inside=True (a pipe), phi = R - r, normal
+    its opposite. On the axis (r <= 1e-14 (|x - p| + R): round-off) the normal is (minus, inside) a x e_k
+    normalised, e_k the coordinate axis least aligned with a.
 
     Args:
-        point: p, a point of the axis (3 numbers).
-        axis: a, the axis direction (3 numbers, any length but 0). In 2-D use a ball (a disc).
-        radius: R > 0.
-        inside: see above.
-        motion, motion_velocity, rotation: see :class:`Obstacle`.
+        point, axis: p a point of the axis, a its direction (3 numbers each; in 2-D a ball is the disc).
+        radius, inside: R > 0 and see above; motion, motion_velocity, rotation: see :class:`Obstacle`.
     """
 
     kind = "cylinder"
@@ -43,7 +38,7 @@ class Cylinder(Obstacle):
         self._on_axis = off / np.linalg.norm(off)
         super().__init__(**motion)
 
-    def _distance0(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _distance0(self, y: Array) -> tuple[Array, Array]:
         full = y - self.point[:, None]
         d = full - np.outer(self.axis, self.axis @ full)
         off = np.linalg.norm(d, axis=0) > ON_AXIS * (np.linalg.norm(full, axis=0) + self.radius)   # beyond round-off
@@ -53,7 +48,7 @@ class Cylinder(Obstacle):
     def planar(self) -> bool:
         return bool(self.axis[0] == 0.0 and self.axis[1] == 0.0)
 
-    def _reference_outline(self, lo: np.ndarray, hi: np.ndarray) -> list[np.ndarray]:
+    def _reference_outline(self, lo: Array, hi: Array) -> list[Array]:
         return circle(self.point, self.radius)
 
     def _parameters(self) -> dict[str, Any]:

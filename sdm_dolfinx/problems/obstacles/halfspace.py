@@ -5,7 +5,7 @@ from typing import Any
 
 import numpy as np
 
-from sdm_dolfinx.problems.obstacles.base import Obstacle, vector
+from sdm_dolfinx.problems.obstacles.base import Array, Obstacle, vector
 
 
 class HalfSpace(Obstacle):
@@ -24,7 +24,7 @@ class HalfSpace(Obstacle):
         self.normal = vector(normal, f"{self.kind}: normal", unit=True)
         super().__init__(**motion)
 
-    def _distance0(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _distance0(self, y: Array) -> tuple[Array, Array]:
         phi = self.normal @ (y - self.point[:, None])
         return phi, np.repeat(self.normal[:, None], y.shape[1], axis=1)
 
@@ -32,7 +32,7 @@ class HalfSpace(Obstacle):
     def planar(self) -> bool:
         return bool(self.normal[2] == 0.0)
 
-    def _reference_outline(self, lo: np.ndarray, hi: np.ndarray) -> list[np.ndarray]:
+    def _reference_outline(self, lo: Array, hi: Array) -> list[Array]:
         mid, half = (lo + hi) / 2, float(np.linalg.norm(hi - lo))
         foot = mid - (self.normal @ (mid - self.point)) * self.normal      # mid's projection on the line
         tangent = np.array([-self.normal[1], self.normal[0], 0.0])

@@ -12,11 +12,9 @@ from typing import Any, Iterator
 
 import numpy as np
 
-from sdm_dolfinx.problems.obstacles.base import ObstacleError
+from sdm_dolfinx.problems.obstacles.base import Array, ObstacleError
 
-#: gmsh element types: the 2-node line and the 3-node triangle
-LINE, TRIANGLE = 1, 2
-
+LINE, TRIANGLE = 1, 2                          # gmsh's 2-node line and 3-node triangle
 Mesh = tuple[dict[int, list[float]], dict[int, list[list[int]]]]
 
 
@@ -59,7 +57,7 @@ def _read_v4(s: dict[str, Iterator[list[str]]]) -> Mesh:
     return nodes, cells
 
 
-def read(path: Any) -> tuple[np.ndarray, dict[int, np.ndarray]]:
+def read(path: Any) -> tuple[Array, dict[int, Array]]:
     """(points (N, 3), {gmsh element type: node indices (m, k) into points}) of an ASCII .msh file."""
     p = Path(path)
     if not p.is_file():

@@ -25,7 +25,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from sdm_dolfinx.problems.obstacles import closest, msh
-from sdm_dolfinx.problems.obstacles.base import Obstacle, ObstacleError
+from sdm_dolfinx.problems.obstacles.base import Array, Obstacle, ObstacleError
 
 SIDES = ("outside", "inside", "normals")
 #: gmsh's other 2-D element types (quadrangles, curved triangles) and curved lines: refused, not ignored
@@ -33,29 +33,25 @@ OTHER_SURFACE = (3, 9, 10, 16, 20, 21, 22, 23, 24, 25)
 OTHER_LINES = (8, 26, 27, 28)
 
 
-def _unit_rows(v: np.ndarray) -> np.ndarray:
+def _unit_rows(v: Array) -> Array:
     n = np.linalg.norm(v, axis=1)
-    return v / np.where(n > 0, n, 1.0)[:, None]
+    return np.asarray(v / np.where(n > 0, n, 1.0)[:, None])
 
 
-def element_normals(points: np.ndarray, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(unit normals (m, 3), sizes (m,): lengths or areas) by the orientation convention."""
-    a, b = points[cells[:, 0]], points[cells[:, 1]]
-    if cells.shape[1] == 2:
-        t = b - a
-        n = np.column_stack([t[:, 1], -t[:, 0], np.zeros(len(t))])
-    else:
-        n = np.cross(b - a, points[cells[:, 2]] - a)
-    size = np.linalg.norm(n, axis=1)
-    return n / np.where(size > 0, size, 1.0)[:, None], size / (1.0 if cells.shape[1] == 2 else 2.0)
+def element_normals(points: Array, cells: Array) -> tuple[Array, Array]:
+    """(unit normals (m, 3), sizes (m,): lengths or twice the areas) by the orientation convention."""
+    t = points[cells[:, 1]] - points[cells[:, 0]]
+    n = np.column_stack([t[:, 1], -t[:, 0], 0 * t[:, 0]]) if cells.shape[1] == 2 else \
+        np.cross(t, points[cells[:, 2]] - points[cells[:, 0]])
+    return _unit_rows(n), np.linalg.norm(n, axis=1)
 
 
-def _edges(cells: np.ndarray) -> np.ndarray:
+def _edges(cells: Array) -> Array:
     """The directed edges (3m, 2) of triangles, edge k of cell i at row 3 i + k."""
-    return np.stack([cells, np.roll(cells, -1, axis=1)], axis=2).reshape(-1, 2)
+    return np.asarray(np.stack([cells, np.roll(cells, -1, axis=1)], axis=2).reshape(-1, 2))
 
 
-def check_topology(cells: np.ndarray, closed: bool, where: str) -> None:
+def check_topology(cells: Array, closed: bool, where: str) -> None:
     """Consistent orientation (a manifold curve/surface), and closedness when ``closed``: each vertex
     (2-D) or edge (3-D) is passed once in each direction (once in all, at an open boundary)."""
     if cells.shape[1] == 2:                            # a vertex "forward" where a line starts, "back" where one ends
@@ -70,7 +66,7 @@ def check_topology(cells: np.ndarray, closed: bool, where: str) -> None:
                             f"side='normals' takes an open one)")
 
 
-def orient(points: np.ndarray, cells: np.ndarray, side: str) -> np.ndarray:
+def orient(points: Array, cells: Array, side: str) -> Array:
     """``cells`` with each connected component's orientation chosen so that its normals point into
     the free space of ``side`` (the sign of its enclosed area/volume)."""
     n_points = len(points)
@@ -91,8 +87,8 @@ def orient(points: np.ndarray, cells: np.ndarray, side: str) -> np.ndarray:
     return out
 
 
-def pseudo_normals(points: np.ndarray, cells: np.ndarray,
-                   normals: np.ndarray) -> tuple[np.ndarray, Optional[np.ndarray]]:
+def pseudo_normals(points: Array, cells: Array,
+                   normals: Array) -> tuple[Array, Optional[Array]]:
     """(vertex pseudo-normals (N, 3), edge pseudo-normals per triangle edge (m, 3, 3) or None)."""
     vertex = np.zeros_like(points)
     if cells.shape[1] == 2:
@@ -112,7 +108,7 @@ def pseudo_normals(points: np.ndarray, cells: np.ndarray,
     return vertex, summed[edge_id].reshape(len(cells), 3, 3)
 
 
-def select(points: np.ndarray, cells: dict[int, np.ndarray], dim: Optional[int], where: str) -> tuple[int, np.ndarray]:
+def select(points: Array, cells: dict[int, Array], dim: Optional[int], where: str) -> tuple[int, Array]:
     """(dim, the cells of that dimension): triangles in 3-D, lines in 2-D (``dim`` None: triangles if
     any, else lines; triangles all in the plane z = 0 are a 2-D domain, refused without ``dim``)."""
     if dim not in (None, 2, 3) or isinstance(dim, bool):
@@ -138,8 +134,7 @@ class SurfaceMesh(Obstacle):
     docstring says the orientation convention and ``side``).
 
     Args:
-        path: the .msh file (formats 2.2 or 4.1, ASCII).
-        side: "outside" (default), "inside" or "normals".
+        path, side: the .msh file (formats 2.2 or 4.1, ASCII); "outside" (default), "inside" or "normals".
         dim: 2 (lines), 3 (triangles) or None (triangles if any, else lines).
         motion, motion_velocity, rotation: see :class:`Obstacle`.
     """
@@ -168,7 +163,7 @@ class SurfaceMesh(Obstacle):
         self._closest = closest.Closest(self.points, self.cells, self.normals)
         super().__init__(**motion)
 
-    def _distance0(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _distance0(self, y: Array) -> tuple[Array, Array]:
         x = y.T
         q, feature, element, dist = self._closest(x)
         pseudo = self.normals[element].copy()                       # interior: the element normal
@@ -190,7 +185,7 @@ class SurfaceMesh(Obstacle):
     def planar(self) -> bool:
         return self.dim == 2
 
-    def _reference_outline(self, lo: np.ndarray, hi: np.ndarray) -> list[np.ndarray]:
+    def _reference_outline(self, lo: Array, hi: Array) -> list[Array]:
         return list(self.points[self.cells])                        # each line a polyline of 2 points
 
     def _parameters(self) -> dict[str, Any]:

@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from sdm_dolfinx.problems.obstacles.base import Obstacle, ObstacleError, vector
+from sdm_dolfinx.problems.obstacles.base import Array, Obstacle, ObstacleError, vector
 
 #: |n1 x n2| below this (unit normals): parallel or opposite, refused (no edge)
 PARALLEL_TOL = 1e-8
@@ -23,9 +23,8 @@ class Wedge(Obstacle):
     for q that nearest point (on the edge itself, a tie inside: the normalised n1 + n2).
 
     Args:
-        apex: a, a point of the edge (the corner in 2-D).
-        normal1, normal2: the faces' outward normals (any length but 0, not parallel or opposite).
-        motion, motion_velocity, rotation: see :class:`Obstacle`.
+        apex, normal1, normal2: a point of the edge (the corner in 2-D); the faces' outward normals (any
+            length but 0, not parallel or opposite). motion, motion_velocity, rotation: see :class:`Obstacle`.
     """
 
     kind = "wedge"
@@ -43,7 +42,7 @@ class Wedge(Obstacle):
         self._mean = mean / np.linalg.norm(mean)
         super().__init__(**motion)
 
-    def _distance0(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _distance0(self, y: Array) -> tuple[Array, Array]:
         r = y - self.apex[:, None]
         d1, d2 = self.n1 @ r, self.n2 @ r
         c = float(self.n1 @ self.n2)
@@ -69,7 +68,7 @@ class Wedge(Obstacle):
     def planar(self) -> bool:
         return bool(self.n1[2] == 0.0 and self.n2[2] == 0.0)
 
-    def _reference_outline(self, lo: np.ndarray, hi: np.ndarray) -> list[np.ndarray]:
+    def _reference_outline(self, lo: Array, hi: Array) -> list[Array]:
         a = self.apex * [1.0, 1.0, 0.0]
         reach = float(np.linalg.norm(hi - lo) + np.linalg.norm((lo + hi) / 2 - a))
         # along the faces away from the edge: (n1 x e).n2 = (e x n2).n1 = -|n1 x n2| < 0
