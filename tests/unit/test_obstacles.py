@@ -560,3 +560,24 @@ def test_a_tetrahedron_and_its_3d_refusals(tmp_path):
         assert words in one_line(e)
     # the same tetrahedron as a cavity: the signs flip
     assert np.allclose(ob.SurfaceMesh(tmp_path / "tet.msh", side="inside").distance(pts((0, 0, 2)))[0], [-1])
+
+
+def test_the_floor_is_exactly_y():
+    # the plane foundation y >= 0 as a half-plane: phi is y itself, bit for bit (the normal (0, 5)
+    # normalises to exactly (0, 1, 0)), so a run with it can reproduce the bound u_y >= -y exactly
+    x = RNG.uniform(-1, 1, (3, 50))
+    x[2] = 0
+    phi, n = ob.HalfSpace((0, 0), (0, 5)).distance(x)
+    assert np.array_equal(phi, x[1]) and np.array_equal(n, np.repeat([[0.0], [1.0], [0.0]], 50, axis=1))
+
+
+def test_outline_of_a_rotating_cam():
+    # a wedge turning about the origin: at the time t its outline passes through the rotated apex
+    # and each piece lies on the rotated faces (phi = 0 there)
+    w, t = 1.1, 0.9
+    o = ob.Wedge((0.5, 0), (1, 1), (-1, 1), rotation=((0, 0), w))
+    pieces = o.outline(t, ((-2, -2, 0), (2, 2, 0)))
+    allp = np.concatenate(pieces)
+    apex = 0.5 * np.array([math.cos(w * t), math.sin(w * t), 0])
+    assert any(np.allclose(p, apex) for p in allp)
+    assert np.allclose(o.distance(allp.T, t)[0], 0, atol=1e-12) and np.all(np.abs(allp[:, :2]) <= 2 + 1e-15)
