@@ -581,3 +581,39 @@ def test_outline_of_a_rotating_cam():
     apex = 0.5 * np.array([math.cos(w * t), math.sin(w * t), 0])
     assert any(np.allclose(p, apex) for p in allp)
     assert np.allclose(o.distance(allp.T, t)[0], 0, atol=1e-12) and np.all(np.abs(allp[:, :2]) <= 2 + 1e-15)
+
+
+def winding_number(x, p, tri):
+    """The generalised winding number of the closed triangle surface at the points x (n, 3): 1 inside,
+    0 outside (the sum of the triangles' signed solid angles, Van Oosterom & Strackee 1983, over 4 pi)."""
+    a, b, c = (p[tri[:, k]][None] - x[:, None] for k in range(3))
+    la, lb, lc = (np.linalg.norm(v, axis=2) for v in (a, b, c))
+    dot = lambda u, v: np.einsum("nmi,nmi->nm", u, v)                     # noqa: E731
+    den = la * lb * lc + dot(a, b) * lc + dot(b, c) * la + dot(c, a) * lb
+    return (2 * np.arctan2(dot(a, np.cross(b, c)), den)).sum(axis=1) / (4 * np.pi)
+
+
+def test_signs_on_a_concave_surface_agree_with_the_winding_number(tmp_path):
+    # a cube with a cylindrical hole and a corner cut away (gmsh booleans: concave edges and corners,
+    # genus 1): the sign of phi must say inside exactly where the winding number does, for random
+    # points and for points 1e-3 off the surface on either side of random triangles
+    import gmsh
+    gmsh.initialize()
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        box = gmsh.model.occ.addBox(-1, -1, -1, 2, 2, 2)
+        tools = [(3, gmsh.model.occ.addCylinder(0, 0, -2, 0, 0, 4, 0.5)),
+                 (3, gmsh.model.occ.addBox(0.2, 0.2, 0.2, 1, 1, 1))]
+        gmsh.model.occ.cut([(3, box)], tools)
+        gmsh.model.occ.synchronize()
+        gmsh.option.setNumber("Mesh.MeshSizeMax", 0.3)
+        gmsh.model.mesh.generate(2)
+        gmsh.write(str(tmp_path / "concave.msh"))
+    finally:
+        gmsh.finalize()
+    o = ob.SurfaceMesh(tmp_path / "concave.msh")
+    t = RNG.integers(0, len(o.cells), 300)
+    on = np.einsum("nk,nki->ni", RNG.dirichlet([1, 1, 1], 300), o.points[o.cells[t]])
+    for x in (RNG.uniform(-1.5, 1.5, (2000, 3)), on + 1e-3 * o.normals[t], on - 1e-3 * o.normals[t]):
+        inside = winding_number(x, o.points, o.cells) > 0.5
+        assert np.array_equal(o.distance(x.T)[0] < 0, inside)
