@@ -477,8 +477,11 @@ def test_surface_mesh_refusals(tmp_path):
                                         "$Elements\n0\n$EndElements\n")
     (tmp_path / "binary.msh").write_text("$MeshFormat\n4.1 1 8\n$EndMeshFormat\n")
     (tmp_path / "junk.msh").write_text("hello\n")
+    full = write_msh22(tmp_path / "whole.msh", p, c).read_text()
+    (tmp_path / "cut.msh").write_text(full[:full.index("$EndElements")])               # a truncated file
     cases += [(tmp_path / "empty.msh", {}, "no line elements"), (tmp_path / "binary.msh", {}, "binary?"),
-              (tmp_path / "junk.msh", {}, "not a gmsh .msh file")]
+              (tmp_path / "junk.msh", {}, "not a gmsh .msh file"),
+              (tmp_path / "cut.msh", {}, "no complete $Nodes or $Elements section")]
     for path, params, words in cases:
         with pytest.raises(ObstacleError) as e:
             ob.SurfaceMesh(path, **params)

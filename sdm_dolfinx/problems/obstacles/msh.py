@@ -7,6 +7,7 @@ refused (gmsh writes ASCII unless ``Mesh.Binary = 1``).
 """
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any, Iterator
 
@@ -18,19 +19,11 @@ LINE, TRIANGLE = 1, 2                          # gmsh's 2-node line and 3-node t
 Mesh = tuple[dict[int, list[float]], dict[int, list[list[int]]]]
 
 
-def _sections(lines: list[str], path: Path) -> dict[str, Iterator[list[str]]]:
+def _sections(text: str) -> dict[str, Iterator[list[str]]]:
     """The non-empty body lines, split, of each ``$Name ... $EndName`` section (the first of a name)."""
     out: dict[str, Iterator[list[str]]] = {}
-    i = 0
-    while i < len(lines):
-        if lines[i].startswith("$") and not lines[i].startswith("$End"):
-            name = lines[i][1:]
-            if f"$End{name}" not in lines[i + 1:]:
-                raise ObstacleError(f"{path}: section ${name} has no $End{name} (not a complete .msh file)")
-            end = lines.index(f"$End{name}", i + 1)
-            out.setdefault(name, iter([r.split() for r in lines[i + 1:end] if r.strip()]))
-            i = end
-        i += 1
+    for m in re.finditer(r"^\$(\w+)[ \t]*\n(.*?)^\$End\1\b", text, re.M | re.S):
+        out.setdefault(m.group(1), iter([r.split() for r in m.group(2).splitlines() if r.strip()]))
     return out
 
 
@@ -63,16 +56,16 @@ def read(path: Any) -> tuple[Array, dict[int, Array]]:
     if not p.is_file():
         raise ObstacleError(f"surface mesh file {str(p)!r} does not exist")
     try:
-        s = _sections([ln.strip() for ln in p.read_text().splitlines()], p)
+        s = _sections(p.read_text())
     except UnicodeDecodeError:
         s = {"MeshFormat": iter([["?", "1"]])}
     head = next(s["MeshFormat"], []) if "MeshFormat" in s else None
     if head is None:
-        raise ObstacleError(f"{p}: not a gmsh .msh file (no $MeshFormat section)")
+        raise ObstacleError(f"{p}: not a gmsh .msh file (no complete $MeshFormat section)")
     if len(head) < 2 or head[1] != "0":
         raise ObstacleError(f"{p}: not an ASCII .msh file (binary? save it with Mesh.Binary = 0)")
     if "Nodes" not in s or "Elements" not in s:
-        raise ObstacleError(f"{p}: no $Nodes or $Elements section (no mesh in this .msh file)")
+        raise ObstacleError(f"{p}: no complete $Nodes or $Elements section (no mesh in this .msh file)")
     if head[0][:2] not in ("2.", "4."):
         raise ObstacleError(f"{p}: .msh format {head[0]} is not read (2.2 and 4.1 are)")
     try:

@@ -69,13 +69,11 @@ def check_topology(cells: Array, closed: bool, where: str) -> None:
 def orient(points: Array, cells: Array, side: str) -> Array:
     """``cells`` with each connected component's orientation chosen so that its normals point into
     the free space of ``side`` (the sign of its enclosed area/volume)."""
-    n_points = len(points)
-    k = cells.shape[1]
-    rows = np.repeat(np.arange(len(cells)), k)
-    graph = coo_matrix((np.ones(rows.size), (rows, cells.ravel())), shape=(len(cells), n_points)).tocsr()
+    rows = np.repeat(np.arange(len(cells)), cells.shape[1])
+    graph = coo_matrix((np.ones(rows.size), (rows, cells.ravel())), shape=(len(cells), len(points))).tocsr()
     _, label = connected_components(graph @ graph.T, directed=False)
     a, b = points[cells[:, 0]], points[cells[:, 1]]
-    if k == 2:
+    if cells.shape[1] == 2:
         signed = 0.5 * (a[:, 0] * b[:, 1] - b[:, 0] * a[:, 1])             # the enclosed area
     else:
         signed = np.einsum("ij,ij->i", a, np.cross(b, points[cells[:, 2]])) / 6.0     # the enclosed volume
@@ -92,8 +90,7 @@ def pseudo_normals(points: Array, cells: Array,
     """(vertex pseudo-normals (N, 3), edge pseudo-normals per triangle edge (m, 3, 3) or None)."""
     vertex = np.zeros_like(points)
     if cells.shape[1] == 2:
-        for k in range(2):
-            np.add.at(vertex, cells[:, k], normals)
+        np.add.at(vertex, cells.ravel(), np.repeat(normals, 2, axis=0))       # row i of cells.ravel(): cell i // 2
         return vertex, None
     for k in range(3):                                              # angle-weighted at the vertices
         u = points[cells[:, (k + 1) % 3]] - points[cells[:, k]]
