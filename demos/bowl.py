@@ -4,7 +4,7 @@
 # (`demos/bowl_problem.py`: `obstacles=[Ball(centre, Rb, inside=True)]`, no `lower_bound`), and
 # checks its motion against a closed form. It shows how to
 #
-# * pose contact with a rigid obstacle of any shape (sdm_dolfinx.problems.obstacles) in a problem file;
+# * pose contact with a rigid obstacle of any shape (sdm_dolfinx.obstacles) in a problem file;
 # * read the rigid motion of a body from the momentum columns (`momentum_x` = e_xᵀ M V̄: the mass
 #   times the velocity of the centre of mass);
 # * check the energy of a run that slides on a curved obstacle for a whole period.

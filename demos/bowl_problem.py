@@ -30,7 +30,7 @@ from dolfinx import fem, mesh as dmesh
 
 from sdm_dolfinx.problems import Param, Problem, ProblemSpec
 from sdm_dolfinx.problems.disc_mesh import make_mesh
-from sdm_dolfinx.problems.obstacles import Ball
+from sdm_dolfinx.obstacles import Ball
 
 
 def period(r, Rb, gravity):

@@ -1,7 +1,7 @@
 """Gap rows against rigid obstacles: the constraint phi(a_i + u(a_i), t) >= 0 at the constrained nodes.
 
 A Problem that declares ``obstacles`` (signed distances phi(x, t) > 0 outside each obstacle, unit
-normal n = grad phi: :mod:`sdm_dolfinx.problems.obstacles`) constrains every constrained node a_i
+normal n = grad phi: :mod:`sdm_dolfinx.obstacles`) constrains every constrained node a_i
 (the vertices of ``constraint_vertices``; with ``constrain="nodes"`` every node of W^h on the
 constrained boundary) by the nearest obstacle: phi_i(y) = min over the obstacles.
 

@@ -82,7 +82,7 @@ class Problem:
             conserved: :mod:`sdm_dolfinx.schemes.midpoint`), backward Euler U^{n+1} >= g(t_{n+1});
             the other schemes, the penalty and Nitsche treatments refuse it in one line. The time
             series gets the columns ``obstacle_work`` and ``obstacle_probe``.
-        obstacles: rigid obstacles (:mod:`sdm_dolfinx.problems.obstacles`: half-spaces of any
+        obstacles: rigid obstacles (:mod:`sdm_dolfinx.obstacles`: half-spaces of any
             orientation, balls and bowls, cylinders, wedges, surface meshes; fixed or moving) instead
             of ``lower_bound``, which is then None: every constrained node stays outside every
             obstacle, phi(a_i + u(a_i), t) >= 0, the rows linearised at the current configuration
@@ -216,7 +216,7 @@ class Problem:
         obstacles = self.obstacles
         if isinstance(obstacles, (str, bytes)) or not isinstance(obstacles, (list, tuple)):
             raise ProblemInputError(f"problem {self.name!r}: obstacles must be a list of obstacles "
-                                    f"(sdm_dolfinx.problems.obstacles), got {type(obstacles).__name__}")
+                                    f"(sdm_dolfinx.obstacles), got {type(obstacles).__name__}")
         if not obstacles:
             if self.lower_bound is None:
                 raise ProblemInputError(f"problem {self.name!r}: lower_bound is None and there are no obstacles: "
@@ -225,7 +225,7 @@ class Problem:
         bad = [type(o).__name__ for o in obstacles if not callable(getattr(o, "distance", None))]
         if bad:
             raise ProblemInputError(f"problem {self.name!r}: obstacles must have distance(x, t) (see "
-                                    f"sdm_dolfinx.problems.obstacles), not {bad[0]}")
+                                    f"sdm_dolfinx.obstacles), not {bad[0]}")
         if not shape:
             raise ProblemInputError(f"problem {self.name!r}: obstacles constrain a displacement vector; a scalar u "
                                     f"is bounded by lower_bound")

@@ -1,4 +1,4 @@
-"""Rigid obstacles as signed distances (sdm_dolfinx.problems.obstacles), against closed forms.
+"""Rigid obstacles as signed distances (sdm_dolfinx.obstacles), against closed forms.
 
 Each expectation is the shape's defining formula (docs/obstacles.md), evaluated by hand at
 chosen points, or a property every signed distance has: |grad phi| = 1 wherever it is
@@ -13,8 +13,8 @@ import math
 import numpy as np
 import pytest
 
-from sdm_dolfinx.problems import obstacles as ob
-from sdm_dolfinx.problems.obstacles import ObstacleError
+from sdm_dolfinx import obstacles as ob
+from sdm_dolfinx.obstacles import ObstacleError
 
 RNG = np.random.default_rng(20261127)
 H = 1e-6                       # central-difference step
@@ -497,7 +497,7 @@ def test_the_prefilter_finds_the_brute_force_closest_point(tmp_path):
     # (far points have many near-equidistant triangles); the sign is the sphere's wherever the point is
     # farther from the sphere than the triangles' largest deviation from it
     import gmsh
-    from sdm_dolfinx.problems.obstacles import closest
+    from sdm_dolfinx.obstacles import closest
     gmsh.initialize()
     try:
         gmsh.option.setNumber("General.Terminal", 0)

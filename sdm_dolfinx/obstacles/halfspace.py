@@ -5,7 +5,7 @@ from typing import Any
 
 import numpy as np
 
-from sdm_dolfinx.problems.obstacles.base import Array, Obstacle, vector
+from sdm_dolfinx.obstacles.base import Array, Obstacle, vector
 
 
 class HalfSpace(Obstacle):

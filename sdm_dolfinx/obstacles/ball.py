@@ -5,7 +5,7 @@ from typing import Any
 
 import numpy as np
 
-from sdm_dolfinx.problems.obstacles.base import Array, Obstacle, flag, number, vector
+from sdm_dolfinx.obstacles.base import Array, Obstacle, flag, number, vector
 
 
 def radial(d: Array, radius: float, inside: bool, centre_normal: Array,

@@ -13,7 +13,7 @@ from typing import Any, Iterator
 
 import numpy as np
 
-from sdm_dolfinx.problems.obstacles.base import Array, ObstacleError
+from sdm_dolfinx.obstacles.base import Array, ObstacleError
 
 LINE, TRIANGLE = 1, 2                          # gmsh's 2-node line and 3-node triangle
 Mesh = tuple[dict[int, list[float]], dict[int, list[list[int]]]]

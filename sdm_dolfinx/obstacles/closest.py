@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial import cKDTree
 
-from sdm_dolfinx.problems.obstacles.base import Array
+from sdm_dolfinx.obstacles.base import Array
 
 INTERIOR, VERTEX, EDGE = 0, 1, 4
 

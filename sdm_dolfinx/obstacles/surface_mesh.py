@@ -24,8 +24,8 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from sdm_dolfinx.problems.obstacles import closest, msh
-from sdm_dolfinx.problems.obstacles.base import Array, Obstacle, ObstacleError
+from sdm_dolfinx.obstacles import closest, msh
+from sdm_dolfinx.obstacles.base import Array, Obstacle, ObstacleError
 
 SIDES = ("outside", "inside", "normals")
 #: gmsh's other 2-D element types (quadrangles, curved triangles) and curved lines: refused, not ignored

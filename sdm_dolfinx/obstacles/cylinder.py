@@ -5,8 +5,8 @@ from typing import Any
 
 import numpy as np
 
-from sdm_dolfinx.problems.obstacles.ball import circle, radial
-from sdm_dolfinx.problems.obstacles.base import Array, Obstacle, ObstacleError, flag, number, vector
+from sdm_dolfinx.obstacles.ball import circle, radial
+from sdm_dolfinx.obstacles.base import Array, Obstacle, ObstacleError, flag, number, vector
 
 #: a point within this relative distance of the axis (round-off of the projection) is on it
 ON_AXIS = 1e-14

@@ -47,7 +47,7 @@ from dolfinx import fem, mesh as dmesh
 
 from sdm_dolfinx.errors import SdmError
 from sdm_dolfinx.problems import Problem, block, disc, load_file
-from sdm_dolfinx.problems.obstacles import Ball, HalfSpace
+from sdm_dolfinx.obstacles import Ball, HalfSpace
 from sdm_dolfinx.run import simulate
 
 COMM = MPI.COMM_WORLD

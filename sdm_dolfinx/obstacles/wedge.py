@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from sdm_dolfinx.problems.obstacles.base import Array, Obstacle, ObstacleError, vector
+from sdm_dolfinx.obstacles.base import Array, Obstacle, ObstacleError, vector
 
 #: |n1 x n2| below this (unit normals): parallel or opposite, refused (no edge)
 PARALLEL_TOL = 1e-8

@@ -7,12 +7,12 @@ from __future__ import annotations
 import inspect
 from typing import Any
 
-from sdm_dolfinx.problems.obstacles.base import Obstacle, ObstacleError
-from sdm_dolfinx.problems.obstacles.ball import Ball
-from sdm_dolfinx.problems.obstacles.cylinder import Cylinder
-from sdm_dolfinx.problems.obstacles.halfspace import HalfSpace
-from sdm_dolfinx.problems.obstacles.surface_mesh import SurfaceMesh
-from sdm_dolfinx.problems.obstacles.wedge import Wedge
+from sdm_dolfinx.obstacles.base import Obstacle, ObstacleError
+from sdm_dolfinx.obstacles.ball import Ball
+from sdm_dolfinx.obstacles.cylinder import Cylinder
+from sdm_dolfinx.obstacles.halfspace import HalfSpace
+from sdm_dolfinx.obstacles.surface_mesh import SurfaceMesh
+from sdm_dolfinx.obstacles.wedge import Wedge
 
 __all__ = ["Obstacle", "ObstacleError", "Ball", "Cylinder", "HalfSpace", "SurfaceMesh", "Wedge",
            "register", "names", "get", "make"]
