@@ -102,10 +102,6 @@ def operators(disc):
     the constrained columns of B (G's unit rows), in the reduced numbering.
     """
     comm = disc.comm
-    if disc.obstacle_rows is not None:
-        raise InspectError(f"problem {disc.problem.name!r} has obstacles: condition (7) for their gap rows (normals "
-                           f"that turn) is not measured yet; the same constrained nodes bounded along one axis "
-                           f"(lower_bound) give the inf-sup constant of an obstacle's flat part")
     W = disc.W
     bs = W.dofmap.index_map_bs
     off = W.dofmap.index_map.local_range[0] * bs
@@ -130,6 +126,39 @@ def operators(disc):
     return B, C, cidx, n_dir
 
 
+def gap_matrix(disc):
+    """The gap rows of ``disc`` as a SciPy CSR matrix on rank 0 (global columns of W^h, None elsewhere),
+    or None on every rank for the unit rows of ``cdofs``: the weighted gap's G; against obstacles the
+    rows at the reference configuration (U = 0, t = 0: each node's normal there). Collective."""
+    import scipy.sparse as sp
+    comm = disc.comm
+    if getattr(disc, "weighted_rows", None) is not None:
+        return _gather_csr(disc.weighted_rows.G, comm)
+    rows = disc.obstacle_rows
+    if rows is None:
+        return None
+    bs = disc.W.dofmap.index_map_bs
+    off = disc.W.dofmap.index_map.local_range[0] * bs
+    coef, _ = rows.rows(np.zeros(max(int(rows.dofs.max(initial=-1)) + 1, 1)), 0.0, 0.0, None)
+    m, k = coef.shape
+    first = comm.exscan(m) or 0
+    r = gather_rows(np.repeat(first + np.arange(m, dtype=np.int64), k), comm)
+    c = gather_rows((off + rows.dofs).reshape(-1).astype(np.int64), comm)
+    v = gather_rows(coef.reshape(-1), comm)
+    n = comm.allreduce(m)
+    if comm.rank != 0:
+        return None
+    G = sp.csr_matrix((v, (r, c)), shape=(n, _w_size(disc)))
+    G.eliminate_zeros()
+    return G
+
+
+def _w_size(disc):
+    """dim W^h (every dof)."""
+    return disc.W.dofmap.index_map.size_global * disc.W.dofmap.index_map_bs
+
+
+
 # ------------------------------------------------------------------------------ linear algebra
 def measure(B, C, cidx, tol=TOL, dense_max=DENSE_MAX):
     """Condition (7) for B (N_H x N_W), C (N_H x N_H, SPD) and constrained columns ``cidx``.
@@ -139,10 +168,14 @@ def measure(B, C, cidx, tol=TOL, dense_max=DENSE_MAX):
     import scipy.sparse as sp
     B = sp.csr_matrix(B)
     nH, nW = B.shape
-    cidx = np.asarray(cidx, dtype=np.int64)
-    Ng = len(cidx)
-    if len(np.unique(cidx)) != Ng:
-        raise InspectError("the constraint set lists a dof twice: the g^i are not linearly independent")
+    if sp.issparse(cidx):           # general rows G (the weighted gap, obstacles' normals)
+        cidx = sp.csr_matrix(cidx)
+        Ng = cidx.shape[0]
+    else:                           # unit rows at the constrained dofs
+        cidx = np.asarray(cidx, dtype=np.int64)
+        Ng = len(cidx)
+        if len(np.unique(cidx)) != Ng:
+            raise InspectError("the constraint set lists a dof twice: the g^i are not linearly independent")
     t0 = time.perf_counter()
     r = _dense(B, C, cidx, tol) if nW <= dense_max else _iterative(B, cidx, dense_max, tol)
     r.update(dim_W=int(nW), dim_H=int(nH), N_g=int(Ng))
@@ -175,7 +208,7 @@ def _dense(B, C, cidx, tol):
         _, s, Vt = sl.svd(Bd, full_matrices=True)
     rank = _rank(s, Bd.shape)
     Z = Vt[rank:].T                                    # orthonormal basis of Ker(B) (= F)
-    Ng, dimF = len(cidx), nW - rank
+    Ng, dimF = cidx.shape[0], nW - rank
     zeros = None                                       # number of zero eigenvalues of G P_F G^T, if known
     if Ng == 0:
         beta = None                                    # inf over an empty set: (7) holds vacuously
@@ -183,7 +216,8 @@ def _dense(B, C, cidx, tol):
         beta = 0.0                                     # rank(G P_F G^T) <= dim F < N_g
         zeros = Ng - dimF if dimF == 0 else None
     else:
-        sv = sl.svdvals(Z[cidx])                       # sigma(Z_c) = sqrt(eigenvalues of G P_F G^T)
+        GZ = cidx @ Z if not isinstance(cidx, np.ndarray) else Z[cidx]
+        sv = sl.svdvals(GZ)                            # sigma(G Z) = sqrt(eigenvalues of G P_F G^T)
         beta = float(sv[-1])
         zeros = int(np.sum(sv <= tol))
     # M = B^T C^-1 B = X^T X with X = L^-1 B, C = L L^T: rank(M) = rank(X), measured, not assumed
@@ -211,7 +245,8 @@ def _iterative(B, cidx, dense_max, tol):
 def _iterative_arpack(B, cidx, dense_max, tol):
     import scipy.sparse.linalg as sla
     nH, nW = B.shape
-    Ng = len(cidx)
+    Ng = cidx.shape[0]
+    unit = isinstance(cidx, np.ndarray)
     wide = nH <= nW
     K = ((B @ B.T) if wide else (B.T @ B)).tocsc()      # Gram matrix of the smaller side
     n = K.shape[0]
@@ -240,15 +275,18 @@ def _iterative_arpack(B, cidx, dense_max, tol):
         beta, method = 0.0, method + "beta = 0 since dim Ker(B) < N_g"
         zeros = Ng if dimF == 0 else None
     else:
-        # P_F = I - B^T (B B^T)^-1 B, so S = G P_F G^T = I - Y^T (B B^T)^-1 Y, Y = B G^T
-        Y = B[:, cidx].tocsc()
+        # P_F = I - B^T (B B^T)^-1 B, so S = G P_F G^T = G G^T - Y^T (B B^T)^-1 Y, Y = B G^T (G G^T = I
+        # for unit rows)
+        Y = B[:, cidx].tocsc() if unit else (B @ cidx.T).tocsc()
+        GGt = np.eye(Ng) if unit else (cidx @ cidx.T).toarray() if Ng <= dense_max else None
         if Ng <= dense_max:
-            S = np.eye(Ng) - Y.T @ lu.solve(Y.toarray())
+            S = GGt - Y.T @ lu.solve(Y.toarray())
             lams = np.linalg.eigvalsh(0.5 * (S + S.T))
             lam, zeros = float(lams[0]), int(np.sum(lams <= tol ** 2))
             method += "S = G P_F G^T formed densely (LAPACK eigvalsh)"
         else:
-            S = sla.LinearOperator((Ng, Ng), matvec=lambda q: q - Y.T @ lu.solve(Y @ q), dtype=float)
+            gg = (lambda q: q) if unit else (lambda q: cidx @ (cidx.T @ q))
+            S = sla.LinearOperator((Ng, Ng), matvec=lambda q: gg(q) - Y.T @ lu.solve(Y @ q), dtype=float)
             lam = float(sla.eigsh(S, k=1, which="SA", v0=rng.standard_normal(Ng), ncv=min(Ng, 64),
                                   maxiter=100 * Ng, return_eigenvectors=False)[0])
             method += "ARPACK (SciPy eigsh) for the smallest eigenvalue of S = G P_F G^T"
@@ -293,6 +331,12 @@ def inspect(problem, pair, tol=TOL, dense_max=DENSE_MAX, constrain="vertices"):
     comm = disc.comm
     h = cell_diameter(problem.mesh)
     B, C, cidx, n_dir = operators(disc)
+    G = gap_matrix(disc)
+    if G is not None:       # general rows: their columns without the Dirichlet dofs
+        dirichlet = _gather_global(disc.ddofs, disc.W.dofmap.index_map.local_range[0] * disc.W.dofmap.index_map_bs,
+                                   comm)
+        if comm.rank == 0:
+            cidx = G[:, np.setdiff1d(np.arange(G.shape[1], dtype=np.int64), dirichlet)].tocsr()
     result, error = None, None
     if comm.rank == 0:
         try:

@@ -12,10 +12,13 @@ import ufl
 from dolfinx import fem, mesh as dmesh
 
 from sdm_dolfinx import compat
+from sdm_dolfinx.method.dofs import owned_size as owned_size, vertex_coordinates as vertex_coordinates  # noqa: F401
+from sdm_dolfinx.method.dofs import vertex_to_dof as vertex_to_dof
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.method.frozen import FrozenData
 from sdm_dolfinx.method import dirichlet as _parts, equilibrium, masses, problem_data, quadrature
 from sdm_dolfinx.method.obstacle_rows import ObstacleRows
+from sdm_dolfinx.method.weighted_rows import WeightedRows
 from sdm_dolfinx.method.pairs import MASS_TREATMENTS, get_pair
 
 #: an initial displacement below the bound by more than this times max(1, max |bound|) at a
@@ -23,41 +26,7 @@ from sdm_dolfinx.method.pairs import MASS_TREATMENTS, get_pair
 INITIAL_TOL = 1e-8
 #: where K^h acts: at the constrained vertices (eq. (13)), or at every dof of W^h on the
 #: constrained boundary (P2's mid-edge nodes too)
-CONSTRAIN = ("vertices", "nodes")
-
-
-def vertex_to_dof(V, vertices):
-    """Local (unblocked) dof index of V at each local mesh vertex in ``vertices``.
-
-    Uses the element's vertex entity dofs, so it works for P1, P2 and P1+bubble alike.
-    """
-    msh = V.mesh
-    tdim = msh.topology.dim
-    msh.topology.create_connectivity(tdim, 0)
-    c2v = msh.topology.connectivity(tdim, 0)
-    nv_cell = tdim + 1                                      # simplices (intervals, triangles, tetrahedra)
-    cell_vertices = c2v.array.reshape(-1, nv_cell)          # (also on a rank without cells)
-    dofs = compat.dofmap_list(V)
-    nverts = msh.topology.index_map(0).size_local + msh.topology.index_map(0).num_ghosts
-    v2d = np.full(nverts, -1, dtype=np.int64)
-    layout = V.dofmap.dof_layout
-    for k in range(cell_vertices.shape[1]):
-        (ldof,) = layout.entity_dofs(0, k)
-        v2d[cell_vertices[:, k]] = dofs[:, ldof]
-    return v2d[np.asarray(vertices, dtype=np.int64)]
-
-
-def vertex_coordinates(msh, vertices):
-    """Coordinates (3, n) of local mesh vertices (via the geometry of P1/P2 meshes)."""
-    tdim = msh.topology.dim
-    msh.topology.create_connectivity(0, tdim)
-    nodes = compat.entities_to_geometry(msh, 0, np.asarray(vertices, dtype=np.int32))
-    return msh.geometry.x[nodes.reshape(-1)].T
-
-
-def owned_size(V):
-    """Number of owned entries (dofs times block size) of V's vectors on this rank."""
-    return V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+CONSTRAIN = ("vertices", "nodes", "weighted")
 
 
 class Discretisation:
@@ -79,7 +48,9 @@ class Discretisation:
             (at every dof of W^h on the constrained boundary, :meth:`_boundary`: P2's mid-edge
             nodes too; each node's stress measure is then the boundary's row sum in W^h,
             :func:`.masses.nodal_measure`). ``"nodes"`` is refused where it names the vertices
-            only (P1, P1+, and every pair in 1-D, whose boundary is a vertex).
+            only (P1, P1+, and every pair in 1-D, whose boundary is a vertex). ``"weighted"``: one
+            row per constrained vertex, the gap averaged over the contact facets around it
+            against its P1 hat function (:mod:`.weighted_rows`: holds a P2 face between vertices).
 
     Raises:
         ProblemInputError: the Problem's own validation (:meth:`Problem.validate`).
@@ -121,6 +92,8 @@ class Discretisation:
             self._nodes()
         #: the gap rows against the Problem's rigid obstacles (:mod:`.obstacle_rows`), or None
         self.obstacle_rows = ObstacleRows(self) if problem.obstacles else None
+        #: the weighted gap's rows (constrain="weighted": :mod:`.weighted_rows`), or None
+        self.weighted_rows = WeightedRows(self) if constrain == "weighted" and self.num_constraints else None
         if self.mass in masses.MODIFIED:
             consistent, self.M = self.M, masses.build(self)
             consistent.destroy()

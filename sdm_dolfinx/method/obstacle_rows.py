@@ -66,18 +66,19 @@ def nearest(obstacles, y: Array, t: float, weight: Optional[float] = None, t1: O
 
 
 def refusal(integ: Any, scheme: Any, vi_solver: str, linear: str) -> Optional[str]:
-    """The one-line refusal of what the gap rows against obstacles do not take yet, or None (also
-    without obstacles). ``integ``: the Integrator being built (its discretisation, contact, friction)."""
+    """The one-line refusal of what the gap rows (obstacles, the weighted gap) do not take yet, or None
+    (also without them). ``integ``: the Integrator being built (its discretisation, contact, friction)."""
     d = integ.discretisation
-    if d.obstacle_rows is None:
+    if d.obstacle_rows is None and getattr(d, "weighted_rows", None) is None:
         return None
-    what = f"problem {d.problem.name!r} has obstacles"
+    what = (f"problem {d.problem.name!r} has obstacles" if d.obstacle_rows is not None
+            else "constrain 'weighted' (the weighted gap's rows)")
     if scheme.bound_weight is None:
         return f"{what}, which scheme {scheme.name!r} does not take: use the midpoint or backward-euler scheme"
     if integ.contact != "exact":
         return f"{what}, which contact {integ.contact!r} does not take yet: use contact 'exact'"
     if integ.friction is not None:
-        return f"{what}: friction against obstacles is not built yet (frictionless only)"
+        return f"{what}: friction on gap rows is not built yet (frictionless only)"
     if vi_solver != "ssn" or linear not in ("auto", "schur"):
         return (f"{what}: their gap rows are solved by the semi-smooth Newton with linear strategy schur only "
                 f"(got vi_solver {vi_solver!r}, linear {linear!r})")

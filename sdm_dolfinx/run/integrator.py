@@ -133,7 +133,7 @@ class Integrator:
             self._gamg = _iterative.attach(self.K, d, self.coefficients)
         # a factorisation of K = c_M B^T D^-1 B + A is cheaper through the sparser
         # augmented matrix [A, sqrt(c_M) B^T; sqrt(c_M) B, -D] when M is much denser than A (P2/P1)
-        factorised = (self.friction is not None or d.obstacle_rows is not None
+        factorised = (self.friction is not None or d.obstacle_rows is not None or d.weighted_rows is not None
                       or (vi_solver == "ssn" and linear in ("schur", "cg-factor")))
         self.factor_matrix = None
         if (factorised and not self.block and self.coefficients is not None and self.coefficients[1] == 1.0
@@ -142,10 +142,15 @@ class Integrator:
             scale = a if a is not None and a * a == c_M else np.sqrt(c_M)
             self.factor_matrix = sparse_factor_matrix(self.K, d.A, d.B, d.c_lumped, scale, d.ddofs)
         self.slip = None
-        if d.obstacle_rows is not None:         # gap rows: the semi-smooth Newton on G x >= g
-            self.linear_strategy, self.linear_reason = "schur", "obstacles: gap rows (dense Schur complement)"
-            self.solver = GapNewton(self.K, d.obstacle_rows.dofs, symmetric_positive=not self.block,
-                                    options=options, factor_matrix=self.factor_matrix)
+        if d.obstacle_rows is not None or d.weighted_rows is not None:     # gap rows: G x >= g
+            what = "obstacles" if d.obstacle_rows is not None else "constrain weighted"
+            self.linear_strategy, self.linear_reason = "schur", f"{what}: gap rows (dense Schur complement)"
+            self.solver = GapNewton(self.K, None if d.obstacle_rows is None else d.obstacle_rows.dofs,
+                                    symmetric_positive=not self.block, options=options,
+                                    factor_matrix=self.factor_matrix,
+                                    G=None if d.weighted_rows is None else d.weighted_rows.G)
+            if d.weighted_rows is not None:
+                self.solver.set_rows(None, d.weighted_rows.g)
         elif self.contact != "exact":
             from sdm_dolfinx import contact as _contact  # lazily: a registry of its own
             context = StepContext(self.K, d, self.dt, self.block, self.factor_matrix)     # never the Integrator
@@ -269,7 +274,8 @@ class Integrator:
             raise StepError(f"step {n + 1} (t = {t + self.dt:.6g}): {e}{_friction_bound.step_hint(self)}") from None
         comm = d.comm
         # a contact treatment imposes nothing (penetration is its model): +inf
-        imposed = (rows.imposed_gap(self.solver, X.array_r) if rows is not None      # the rows' own G X - g
+        gap_rows = rows or d.weighted_rows
+        imposed = (gap_rows.imposed_gap(self.solver, X.array_r) if gap_rows is not None     # the rows' G X - g
                    else ts.imposed_gap(self, X) if self.treatment is None else float("inf"))
         info["gap_imposed"] = comm.allreduce(imposed, op=MPI.MIN)
         self.moving.after_solve(self.lam, info)     # the bound at t_{n+1}, the step's obstacle_work

@@ -1,24 +1,27 @@
-"""The semi-smooth Newton on general gap rows: G x >= g, one row per contact point.
+"""The semi-smooth Newton on general gap rows: G x >= g.
 
-Each step of the midpoint or backward Euler scheme against rigid obstacles is the variational
-inequality
+Each step of the midpoint or backward Euler scheme with gap rows is the variational inequality
 
     G x >= g,   lam >= 0,   lam . (G x - g) = 0,   K x - b = G^T lam,
 
-where row i of G reads the k = gdim displacement dofs of one node, G_i x = n_i . x_node (n_i the
-obstacle's unit normal there), so that G_i^T lam_i is the force lam_i n_i on that node. The
-axis-aligned bound x_c >= lb of :class:`~.semismooth.SemismoothNewton` is the case n_i = e_c.
+row i of G a linear functional of the displacement: against a rigid obstacle it reads the k = gdim
+dofs of one node, G_i x = n_i . x_node (n_i the obstacle's unit normal there, so that G_i^T lam_i is
+the force lam_i n_i on that node: :class:`NodeRows`, its coefficients given anew before every step);
+a weighted (mortar) gap reads every dof of the contact facets around a vertex (:class:`MatrixRows`,
+a distributed PETSc matrix fixed for the run). The axis-aligned bound x_c >= lb of
+:class:`~.semismooth.SemismoothNewton` is the node row n_i = e_c.
 
 As in its ``schur`` strategy, K is factorised once per run and the Newton systems are dense: with
 x0 = K^-1 b (one solve per step) and the columns K^-1 e_j cached for every dof j an active row has
-ever read (so that a row whose normal changes from step to step costs no new solve), a Newton
-system on the active set A is x = x0 + K^-1 G_A^T mu, with mu from the |A| x |A| SPD system
+ever read (a node row whose normal turns costs no new solve), a Newton system on the active set A is
+x = x0 + K^-1 G_A^T mu, with mu from the |A| x |A| SPD system
 
     (G_A K^-1 G_A^T) mu = g_A - G_A x0,
 
 and mu is the multiplier. The active set is updated as in the primal-dual active set method
 (Murty's rule against cycles). There is no Krylov fallback: more than ``max_columns`` cached
-columns (an active contact zone of more than max_columns / gdim nodes) is refused in one line.
+columns is refused in one line (an active zone of about max_columns / gdim nodes against an
+obstacle, fewer with weighted rows).
 """
 from __future__ import annotations
 
@@ -36,69 +39,45 @@ from sdm_dolfinx.solvers.factorisation import Factorisation
 from sdm_dolfinx.solvers.options import instance_prefix, scoped_options, vi_tolerances
 from sdm_dolfinx.solvers.schur import SCHUR_COLUMN_MEMORY, SCHUR_MAX_COLUMNS
 
+Array = npt.NDArray[np.float64]
 
-class GapNewton:
-    """Primal-dual active set solver for the step VI with gap rows (see the module).
 
-    Args:
-        K: the step matrix (Dirichlet rows are identity rows).
-        dofs: (m, k) owned local indices of x that each of this rank's m rows reads.
-        symmetric_positive: K is SPD (M formulation); else the (U, V) block matrix.
-        prefix: PETSc options prefix (None: a new ``sdm_<k>_``); options as for the semi-smooth Newton
-            (``snes_max_it``, ``snes_monitor``, ``snes_rtol`` ...) through :func:`vi_tolerances`.
-        options: default PETSc options of this instance.
-        factor_matrix: a sparser matrix whose factorisation solves with K, or None.
-        rtol: tolerance of the complementarity tests, relative to max|b|.
-        max_it: Newton iterations before giving up.
-        max_columns: the most columns K^-1 e_j cached (the largest active zone it solves).
+class _Rows:
+    """What the Newton loop needs of its rows (a subclass: where they read x): the cache of columns
+    K^-1 e_j, G x, and the dense systems."""
 
-    The rows (their coefficients and right-hand sides) are given before each solve by
-    :meth:`set_rows`; ``lam`` (m,) and ``active`` (m,) are those of the last solve.
-    """
-
-    def __init__(self, K: PETSc.Mat, dofs: npt.ArrayLike, symmetric_positive: bool = True,
-                 prefix: Optional[str] = None, options: Optional[Mapping[str, Any]] = None,
-                 factor_matrix: Optional[PETSc.Mat] = None, rtol: float = 1e-10, max_it: int = 500,
-                 max_columns: int = SCHUR_MAX_COLUMNS) -> None:
-        self.K, self.comm = K, K.getComm().tompi4py()
-        self.dofs = np.asarray(dofs, dtype=np.int32).reshape(len(dofs), -1) if len(dofs) else \
-            np.zeros((0, 1), dtype=np.int32)
-        m, k = self.dofs.shape
-        self.num_constraints = self.comm.allreduce(m, op=MPI.SUM)
-        self.coef, self.g = np.zeros((m, k)), np.zeros(m)
-        self.lam, self.active = np.zeros(m), np.zeros(m, dtype=bool)
-        self.prefix, self.options = instance_prefix(self.comm, prefix), dict(options or {})
-        self.spd, self.max_columns, self.linear = symmetric_positive, int(max_columns), "schur"
-        with scoped_options(self.prefix, self.options, inherit=True) as scope:
-            self.rtol, self.max_it, self.monitor = vi_tolerances(scope, rtol, max_it)
-            self.fac = Factorisation(K, symmetric_positive, self.prefix + "factor_", aug=factor_matrix)
-        diag = K.getDiagonal()
-        dsum = self.comm.allreduce(float(np.sum(diag.array[self.dofs])), op=MPI.SUM)
-        self.r = dsum / (self.num_constraints * k) if self.num_constraints else 1.0    # Alart–Curnier r
-        diag.destroy()
+    def __init__(self, K: PETSc.Mat, fac: Factorisation, m: int, max_columns: int) -> None:
+        self.K, self.fac, self.comm = K, fac, K.getComm().tompi4py()
+        self.g = np.zeros(m)
+        self.max_columns = int(max_columns)
         self.its = 0
-        self.gd = (K.getOwnershipRange()[0] + self.dofs).astype(np.int64)        # global ids, (m, k)
         self._slot: dict[int, int] = {}
-        self._Zt = np.zeros((m * k, 0))                # cached columns at the rows' dofs (row-major m x k)
-        self._Zf: Optional[np.ndarray] = np.zeros((K.getLocalSize()[0], 0), order="F")
         self._ncols = 0
-        self._x0 = K.createVecRight()
+        self._Zf: Optional[np.ndarray] = np.zeros((K.getLocalSize()[0], 0), order="F")
         self._rhs = K.createVecLeft()
 
-    @property
-    def total_linear_its(self) -> int:
-        """Solves with the factorisation so far (one per step, one per new column)."""
-        return self.its
+    # the subclasses'
+    def values(self, x: Array) -> Array:
+        """G x at this rank's rows for the owned array x (collective)."""
+        raise NotImplementedError
 
-    def set_rows(self, coef: npt.ArrayLike, g: npt.ArrayLike) -> None:
-        """The rows of the next solve: G_i x = coef[i] . x[dofs[i]] >= g[i]."""
-        self.coef[:] = np.asarray(coef, dtype=float).reshape(self.coef.shape)
-        self.g[:] = np.asarray(g, dtype=float).reshape(self.g.shape)
+    def _entries(self, rows: npt.NDArray[np.int64]) -> tuple[np.ndarray, np.ndarray]:
+        """(global column ids, values), each (len(rows), k), of the given local rows (zero-padded)."""
+        raise NotImplementedError
 
-    def row_values(self, x: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
-        """G x at this rank's rows for the owned array ``x``."""
-        return np.einsum("ik,ik->i", self.coef, x[self.dofs]) if len(self.g) else np.zeros(0)
+    def _store(self, cols: np.ndarray, start: int) -> None:
+        """Keep what the subclass needs of the new columns ``cols`` (n_local x k), slots start.."""
+        raise NotImplementedError
 
+    def _gz(self, slots: npt.NDArray[np.int64]) -> Array:
+        """G K^-1 e_j at this rank's rows for the cached columns in ``slots`` (m x len(slots))."""
+        raise NotImplementedError
+
+    def _add_transpose(self, rows: npt.NDArray[np.int64], mu: Array, out: Array) -> None:
+        """out += G_rows^T mu (owned entries; collective)."""
+        raise NotImplementedError
+
+    # shared
     def _ensure_columns(self, gids: list[int]) -> None:
         """Compute and cache K^-1 e_j for the ids not cached yet (collective, same list)."""
         missing = [j for j in gids if j not in self._slot]
@@ -106,52 +85,51 @@ class GapNewton:
             return
         need = self._ncols + len(missing)
         if need > self.max_columns:
-            raise VIError(f"the active contact zone needs {need} columns of K^-1 (at most {self.max_columns}: "
-                          f"about {self.max_columns // max(self.dofs.shape[1], 1)} active nodes against an obstacle)")
+            raise VIError(f"the active contact zone needs {need} columns of K^-1 (at most {self.max_columns}): "
+                          f"the gap rows' dense Schur complement has no Krylov fallback yet")
         cols = self.fac.solve_columns(missing)
         self.its += len(missing)
-        if need > self._Zt.shape[1]:
-            cap = min(max(need, 2 * self._Zt.shape[1], 16), self.max_columns)
-            Zt = np.zeros((self._Zt.shape[0], cap))
-            Zt[:, :self._ncols] = self._Zt[:, :self._ncols]
-            self._Zt = Zt
-            fits = self.comm.allreduce(self.K.getLocalSize()[0] * cap * 8 <= SCHUR_COLUMN_MEMORY, op=MPI.LAND)
-            if self._Zf is not None and fits:
+        if self._Zf is not None and need > self._Zf.shape[1]:
+            cap = min(max(need, 2 * self._Zf.shape[1], 16), self.max_columns)
+            fits = self.comm.allreduce(self._Zf.shape[0] * cap * 8 <= SCHUR_COLUMN_MEMORY, op=MPI.LAND)
+            if fits:
                 Zf = np.zeros((self._Zf.shape[0], cap), order="F")
                 Zf[:, :self._ncols] = self._Zf[:, :self._ncols]
                 self._Zf = Zf
             else:
                 self._Zf = None
-        self._Zt[:, self._ncols:need] = cols[self.dofs.reshape(-1), :]
         if self._Zf is not None:
             self._Zf[:, self._ncols:need] = cols
+        self._store(cols, self._ncols)
         for j, gid in enumerate(missing):
             self._slot[gid] = self._ncols + j
         self._ncols = need
 
-    def _system(self, active):
-        """(G x, lam) of the Newton system on ``active`` (collective), keeping (slots, P mu) for :meth:`_finish`."""
-        comm, (m, k) = self.comm, self.dofs.shape
+    def start(self, x0: PETSc.Vec) -> None:
+        self._x0 = x0
+        self._gx0 = self.values(x0.array_r)
+
+    def system(self, active: npt.NDArray[np.bool_]) -> tuple[Array, Array]:
+        """(G x, lam) of the Newton system on ``active`` (collective), kept for :meth:`finish`."""
+        comm, m = self.comm, len(self.g)
         rows = np.flatnonzero(active)
-        ids = comm.allgather(self.gd[rows])
-        cfs = comm.allgather(self.coef[rows])
-        gA = np.concatenate(ids) if ids else np.zeros((0, k), dtype=np.int64)
-        cA = np.concatenate(cfs) if cfs else np.zeros((0, k))
+        ids_loc, vals_loc = self._entries(rows)
+        ids, vals = comm.allgather(ids_loc), comm.allgather(vals_loc)
+        k = max(a.shape[1] for a in ids) if ids else 1
+        gA = np.concatenate([np.pad(a, ((0, 0), (0, k - a.shape[1])), constant_values=-1) for a in ids])
+        cA = np.concatenate([np.pad(a, ((0, 0), (0, k - a.shape[1]))) for a in vals])
         nA = len(gA)
         if nA == 0:
-            self._slots, self._pmu, self._mu_local = np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0)
+            self._slots, self._pmu, self._rows, self._mu_local = np.zeros(0, np.int64), np.zeros(0), rows, np.zeros(0)
             return self._gx0.copy(), np.zeros(m)
-        used = np.unique(gA[cA != 0.0]) if np.any(cA != 0.0) else np.unique(gA)
+        nz = cA != 0.0
+        used = np.unique(gA[nz])
         self._ensure_columns(used.tolist())
         slots = np.array([self._slot[j] for j in used.tolist()], dtype=np.int64)
-        where = {j: s for s, j in enumerate(used.tolist())}
         P = np.zeros((len(used), nA))                   # G_A^T in the basis of the used columns
-        for a in range(nA):
-            for c in range(k):
-                if cA[a, c] != 0.0:
-                    P[where[int(gA[a, c])], a] += cA[a, c]
-        Zt = self._Zt[:, slots].reshape(m, k, len(slots))
-        GZ = np.einsum("ik,iks->is", self.coef, Zt)     # G K^-1 at this rank's rows, used columns
+        a_idx = np.nonzero(nz)
+        np.add.at(P, (np.searchsorted(used, gA[a_idx]), a_idx[0]), cA[a_idx])
+        GZ = self._gz(slots)
         S = np.vstack(comm.allgather(GZ[rows] @ P))
         r = np.concatenate(comm.allgather(self.g[rows] - self._gx0[rows]))
         mu = np.linalg.solve(S, r)
@@ -159,11 +137,11 @@ class GapNewton:
         off = sum(len(p) for p in ids[:comm.rank])
         lam = np.zeros(m)
         lam[rows] = mu[off:off + len(rows)]
-        self._slots, self._pmu, self._mu_local = slots, pmu, mu[off:off + len(rows)]
+        self._slots, self._pmu, self._rows, self._mu_local = slots, pmu, rows, mu[off:off + len(rows)]
         return self._gx0 + GZ @ pmu, lam
 
-    def _finish(self, b, x, active):
-        """The full x of the accepted active set, each active row then held exactly."""
+    def finish(self, b: PETSc.Vec, x: PETSc.Vec) -> None:
+        """The full x of the accepted active set (the last :meth:`system`)."""
         if self._Zf is not None:
             out = self._x0.array_r.copy()
             for slot, v in zip(self._slots, self._pmu):
@@ -171,34 +149,214 @@ class GapNewton:
             x.array[:] = out
         else:               # one more solve: K x = b + G_A^T mu
             b.copy(self._rhs)
-            rows = np.flatnonzero(active)
-            np.add.at(self._rhs.array, self.dofs[rows].reshape(-1), (self.coef[rows] * self._mu_local[:, None]).reshape(-1))
+            self._add_transpose(self._rows, self._mu_local, self._rhs.array)
             self.fac.solve(self._rhs, x)
             self.its += 1
-        rows = np.flatnonzero(active)
+
+    def destroy(self) -> None:
+        self._rhs.destroy()
+
+
+class NodeRows(_Rows):
+    """Rows that read the owned dofs of one node each: G_i x = coef[i] . x[dofs[i]] (coefficients
+    given before every solve: :meth:`set`). The columns are cached at the rows' dofs (Zt), so a
+    normal that turns needs no product with the full columns."""
+
+    def __init__(self, K, fac, dofs, max_columns):
+        self.dofs = np.asarray(dofs, dtype=np.int32).reshape(len(dofs), -1) if len(dofs) else \
+            np.zeros((0, 1), dtype=np.int32)
+        m, k = self.dofs.shape
+        super().__init__(K, fac, m, max_columns)
+        self.coef = np.zeros((m, k))
+        self.gd = (K.getOwnershipRange()[0] + self.dofs).astype(np.int64)
+        self._Zt = np.zeros((m * k, 0))
+
+    def set(self, coef, g):
+        self.coef[:] = np.asarray(coef, dtype=float).reshape(self.coef.shape)
+        self.g[:] = np.asarray(g, dtype=float).reshape(self.g.shape)
+
+    def values(self, x):
+        return np.einsum("ik,ik->i", self.coef, x[self.dofs]) if len(self.g) else np.zeros(0)
+
+    def _entries(self, rows):
+        return self.gd[rows], self.coef[rows]
+
+    def _store(self, cols, start):
+        need = start + cols.shape[1]
+        if need > self._Zt.shape[1]:
+            Zt = np.zeros((self._Zt.shape[0], max(need, 2 * self._Zt.shape[1], 16)))
+            Zt[:, :start] = self._Zt[:, :start]
+            self._Zt = Zt
+        self._Zt[:, start:need] = cols[self.dofs.reshape(-1), :]
+
+    def _gz(self, slots):
+        m, k = self.dofs.shape
+        return np.einsum("ik,iks->is", self.coef, self._Zt[:, slots].reshape(m, k, len(slots)))
+
+    def _add_transpose(self, rows, mu, out):
+        np.add.at(out, self.dofs[rows].reshape(-1), (self.coef[rows] * mu[:, None]).reshape(-1))
+
+    def finish(self, b, x):
+        super().finish(b, x)
+        rows = self._rows
         if len(rows):       # one row per node (the rows share no dof): move along the row to g exactly
-            c = self.coef[rows]
-            xr = x.array[self.dofs[rows]]
+            c, xr = self.coef[rows], x.array[self.dofs[rows]]
             step = (self.g[rows] - np.einsum("ik,ik->i", c, xr)) / np.einsum("ik,ik->i", c, c)
             x.array[self.dofs[rows]] = xr + step[:, None] * c
+
+
+class MatrixRows(_Rows):
+    """Rows of a distributed PETSc matrix G fixed for the run (this rank's rows its local rows, K's
+    column layout), with g given by :meth:`set`: a row may read dofs of other ranks. G K^-1 e_j is
+    computed once per cached column (a sparse-dense product)."""
+
+    def __init__(self, K, fac, G, max_columns):
+        m = G.getLocalSize()[0]
+        super().__init__(K, fac, m, max_columns)
+        self.G = G
+        ai, aj, av = G.getValuesCSR()
+        self._ai, self._aj, self._av = np.asarray(ai), np.asarray(aj, dtype=np.int64), np.asarray(av)
+        self._GZ = np.zeros((m, 0))
+        self._xv, self._gv = G.createVecRight(), G.createVecLeft()
+
+    def set(self, g):
+        self.g[:] = np.asarray(g, dtype=float).reshape(self.g.shape)
+
+    def values(self, x):
+        self._xv.array[:] = x
+        self.G.mult(self._xv, self._gv)
+        return self._gv.array_r.copy()
+
+    def _entries(self, rows):
+        counts = self._ai[rows + 1] - self._ai[rows] if len(rows) else np.zeros(0, dtype=np.int64)
+        k = int(counts.max(initial=1))
+        ids, vals = np.full((len(rows), k), -1, dtype=np.int64), np.zeros((len(rows), k))
+        for r, (i, n) in enumerate(zip(rows, counts)):
+            ids[r, :n] = self._aj[self._ai[i]:self._ai[i] + n]
+            vals[r, :n] = self._av[self._ai[i]:self._ai[i] + n]
+        return ids, vals
+
+    def _store(self, cols, start):
+        nl, k = cols.shape
+        D = PETSc.Mat().createDense([(nl, self.K.getSize()[0]), (None, k)], comm=self.K.getComm())
+        D.setUp()
+        D.getDenseArray()[:] = cols
+        D.assemble()
+        GZ = self.G.matMult(D)
+        new = GZ.getDenseArray().copy()
+        GZ.destroy(), D.destroy()
+        need = start + k
+        if need > self._GZ.shape[1]:
+            grown = np.zeros((self._GZ.shape[0], max(need, 2 * self._GZ.shape[1], 16)))
+            grown[:, :start] = self._GZ[:, :start]
+            self._GZ = grown
+        self._GZ[:, start:need] = new
+
+    def _gz(self, slots):
+        return self._GZ[:, slots]
+
+    def _add_transpose(self, rows, mu, out):
+        full = np.zeros(len(self.g))
+        full[rows] = mu
+        self._gv.array[:] = full
+        self.G.multTranspose(self._gv, self._xv)
+        out += self._xv.array_r
+
+    def destroy(self):
+        super().destroy()
+        self._xv.destroy(), self._gv.destroy()
+
+
+class GapNewton:
+    """Primal-dual active set solver for the step VI with gap rows (see the module).
+
+    Args:
+        K: the step matrix (Dirichlet rows are identity rows).
+        dofs: node rows: (m, k) owned local indices of x that each of this rank's m rows reads
+            (coefficients and g given before each solve by :meth:`set_rows`); or None with ``G``.
+        G: matrix rows: a PETSc matrix (this rank's rows, K's columns) fixed for the run (g by
+            :meth:`set_rows` ``(None, g)``); or None with ``dofs``.
+        symmetric_positive: K is SPD (M formulation); else the (U, V) block matrix.
+        prefix: PETSc options prefix (None: a new ``sdm_<k>_``); ``vi_rtol``, ``vi_max_it``,
+            ``vi_monitor`` as for the semi-smooth Newton (:func:`vi_tolerances`).
+        options: default PETSc options of this instance.
+        factor_matrix: a sparser matrix whose factorisation solves with K, or None.
+        rtol: tolerance of the complementarity tests, relative to max|b|.
+        max_it: Newton iterations before giving up.
+        max_columns: the most columns K^-1 e_j cached (the largest active zone it solves).
+
+    ``lam`` (m,) and ``active`` (m,) are those of the last solve; ``g`` the rows' right-hand sides.
+    """
+
+    def __init__(self, K: PETSc.Mat, dofs: Optional[npt.ArrayLike] = None, symmetric_positive: bool = True,
+                 prefix: Optional[str] = None, options: Optional[Mapping[str, Any]] = None,
+                 factor_matrix: Optional[PETSc.Mat] = None, rtol: float = 1e-10, max_it: int = 500,
+                 max_columns: int = SCHUR_MAX_COLUMNS, G: Optional[PETSc.Mat] = None) -> None:
+        if (dofs is None) == (G is None):
+            raise ValueError("GapNewton takes node rows (dofs) or a matrix G, one of them")
+        self.K, self.comm = K, K.getComm().tompi4py()
+        self.prefix, self.options = instance_prefix(self.comm, prefix), dict(options or {})
+        self.spd, self.linear = symmetric_positive, "schur"
+        with scoped_options(self.prefix, self.options, inherit=True) as scope:
+            self.rtol, self.max_it, self.monitor = vi_tolerances(scope, rtol, max_it)
+            self.fac = Factorisation(K, symmetric_positive, self.prefix + "factor_", aug=factor_matrix)
+        self.rows: _Rows = (NodeRows(K, self.fac, dofs, max_columns) if G is None
+                            else MatrixRows(K, self.fac, G, max_columns))
+        m = len(self.rows.g)
+        self.num_constraints = self.comm.allreduce(m, op=MPI.SUM)
+        self.lam, self.active = np.zeros(m), np.zeros(m, dtype=bool)
+        # the Alart–Curnier scale r: the mean of K's diagonal at the dofs the rows read
+        diag = K.getDiagonal()
+        if G is None:
+            read = self.rows.dofs.reshape(-1)
+        else:
+            read = np.unique(self.rows._aj) - K.getOwnershipRange()[0]
+            read = read[(read >= 0) & (read < K.getLocalSize()[0])]
+        dsum = self.comm.allreduce(float(np.sum(diag.array[read])), op=MPI.SUM)
+        nread = self.comm.allreduce(len(read), op=MPI.SUM)
+        self.r = dsum / nread if nread else 1.0
+        diag.destroy()
+        self._x0 = K.createVecRight()
+
+    @property
+    def g(self) -> Array:
+        return self.rows.g
+
+    @property
+    def total_linear_its(self) -> int:
+        """Solves with the factorisation so far (one per step, one per new column)."""
+        return self.rows.its
+
+    def set_rows(self, coef: Optional[npt.ArrayLike], g: npt.ArrayLike) -> None:
+        """The rows of the next solve: node rows G_i x = coef[i] . x[dofs[i]] >= g[i]; matrix rows
+        (coef None) G_i x >= g[i]."""
+        if isinstance(self.rows, NodeRows):
+            self.rows.set(coef, g)
+        else:
+            self.rows.set(g)
+
+    def row_values(self, x: Array) -> Array:
+        """G x at this rank's rows for the owned array ``x`` (collective for matrix rows)."""
+        return self.rows.values(x)
 
     def solve(self, b: PETSc.Vec, x: PETSc.Vec) -> dict[str, Any]:
         """Solve the step VI for the right-hand side b into x (see the module); returns
         ``{"its", "n_active"}``. Raises VIError (no convergence, a contact zone too large)."""
+        rows = self.rows
         with scoped_options(self.prefix, self.options, inherit=True):
             self.fac.solve(b, self._x0)
-        self.its += 1
-        self._gx0 = self.row_values(self._x0.array_r)
+        rows.its += 1
+        rows.start(self._x0)
         scale = max(b.norm(PETSc.NormType.NORM_INFINITY), 1e-300)
         tol_lam = self.rtol * scale
         tol_x = tol_lam / self.r
         active = self.active.copy()
-        first = self.comm.exscan(len(self.g)) or 0
-        murty = MurtyRule(first + np.arange(len(self.g)), self.comm)
+        first = self.comm.exscan(len(rows.g)) or 0
+        murty = MurtyRule(first + np.arange(len(rows.g)), self.comm)
         for it in range(1, self.max_it + 1):
-            gx, lam = self._system(active)
+            gx, lam = rows.system(active)
             lam = np.where(active, lam, 0.0)
-            infeasible = np.where(active, lam < -tol_lam, gx < self.g - tol_x)
+            infeasible = np.where(active, lam < -tol_lam, gx < rows.g - tol_x)
             n_inf = self.comm.allreduce(int(np.count_nonzero(infeasible)), op=MPI.SUM)
             self.lam, self.active = lam, active
             if self.monitor:
@@ -206,7 +364,7 @@ class GapNewton:
                 if self.comm.rank == 0:
                     print(f"  {it:3d} semi-smooth Newton (gap rows): {n_act} active, {n_inf} infeasible", flush=True)
             if n_inf == 0:
-                self._finish(b, x, active)
+                rows.finish(b, x)
                 return {"its": it, "n_active": self.comm.allreduce(int(np.count_nonzero(active)), op=MPI.SUM)}
             one = murty.single(n_inf, infeasible)
             active = active ^ (infeasible if one is None else one)
@@ -215,5 +373,5 @@ class GapNewton:
 
     def destroy(self) -> None:
         self._x0.destroy()
-        self._rhs.destroy()
+        self.rows.destroy()
         self.fac.destroy()
