@@ -331,8 +331,8 @@ def inspect(problem, pair, tol=TOL, dense_max=DENSE_MAX, constrain="vertices"):
     comm = disc.comm
     h = cell_diameter(problem.mesh)
     B, C, cidx, n_dir = operators(disc)
-    G = gap_matrix(disc)
-    if G is not None:       # general rows: their columns without the Dirichlet dofs
+    G = gap_matrix(disc)    # on rank 0
+    if disc.weighted_rows is not None or disc.obstacle_rows is not None:    # general rows, without Dirichlet columns
         dirichlet = _gather_global(disc.ddofs, disc.W.dofmap.index_map.local_range[0] * disc.W.dofmap.index_map_bs,
                                    comm)
         if comm.rank == 0:

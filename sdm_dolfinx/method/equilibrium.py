@@ -68,9 +68,10 @@ def initial_displacement(d, u0, friction=None, contact="exact"):
     if not isinstance(p.u0, str):          # validated: a string is EQUILIBRIUM
         u0.interpolate(getattr(p.u0, "for_constraint", lambda kind: p.u0)(d.constrain))
         return
-    if d.obstacle_rows is not None:
-        raise DiscretisationError(f"problem {p.name!r}: u0 = 'equilibrium' against obstacles is not built yet: "
-                                  f"start from a displacement or a Function (u0)")
+    if d.obstacle_rows is not None or getattr(d, "weighted_rows", None) is not None:
+        what = "against obstacles" if d.obstacle_rows is not None else "with constrain 'weighted'"
+        raise DiscretisationError(f"problem {p.name!r}: u0 = 'equilibrium' {what} is not built yet: start from a "
+                                  f"displacement or a Function (u0; a built-in problem: start = rest)")
     Us = static_displacement(d, friction, contact)
     u0.x.array[:len(Us.array_r)] = Us.array_r          # the owned entries: the same layout
     u0.x.scatter_forward()

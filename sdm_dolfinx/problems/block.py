@@ -189,8 +189,10 @@ class StaticStart:
         if kind == self.kind:
             return self
         if kind not in self.kinds:
-            raise _problem.ProblemInputError(f"{self.label}: no static solution with the constraint at every "
-                                             f"{kind[:-1]} (constrain {kind}); use {self.instead}")
+            where = {"vertices": "at every vertex", "nodes": "at every node",
+                     "weighted": "as the weighted gap"}.get(kind, f"of kind {kind}")
+            raise _problem.ProblemInputError(f"{self.label}: no static solution with the constraint {where} "
+                                             f"(constrain {kind}); use {self.instead}")
         return StaticStart(self.msh, self.solve, self.label, self.instead, self.kinds, kind)
 
     def __call__(self, x):

@@ -95,8 +95,10 @@ TABLE = (
                                 "tresca = |lam_T| <= threshold x the vertex's boundary measure at every constrained "
                                 "vertex, in contact or not (for a body in lasting contact)", type=str,
               choices=lambda: _friction.LAWS, noun="friction law", group=FRICTION),
-    RunOption("constrain", "vertices", "where the constraint holds: vertices (eq. (13), default) or nodes (every dof "
-                                       "of W^h on the constrained boundary: P2 mid-edge nodes too)", type=str,
+    RunOption("constrain", "vertices", "where the constraint holds: vertices (eq. (13), default), nodes (every dof "
+                                       "of W^h on the constrained boundary: P2 mid-edge nodes too) or weighted (the "
+                                       "gap averaged around each vertex: holds a P2 face between its vertices)",
+              type=str,
               choices=CONSTRAIN, noun="constrain", group=METHOD),
     RunOption("contact", "exact", "contact treatment: {choices}; exact = the variational inequality (default)",
               type=str, choices=contact.names, noun="contact treatment", group=METHOD),

@@ -272,9 +272,16 @@ class TimeSeries:
             warnings.warn_explicit(
                 f"step {n} (t = {t:.6g}): the constrained boundary sank {sink:.3g} below its constrained vertices "
                 f"at ({where}), {share} of the run's displacement spread {self.spread:.3g} (tolerance "
-                f"{self.boundary_tol:.3g}; the deepest of the run); the constraint holds at vertices only (eq. "
-                f"(13)): constrain='nodes' (--constrain nodes) holds every node of the face; every step's minimum "
+                f"{self.boundary_tol:.3g}; the deepest of the run); {self._remedy()}; every step's minimum "
                 f"is in the column {BOUNDARY_GAP}", BoundaryGapWarning, "sdm_dolfinx", 0)
+
+    def _remedy(self) -> str:
+        """Where the run's constraint holds, and the options that hold the face between the vertices."""
+        if getattr(self.discretisation, "weighted_rows", None) is not None:
+            return ("the weighted gap holds the face on average between its vertices: constrain='nodes' "
+                    "(--constrain nodes) holds every node of it")
+        return ("the constraint holds at vertices only (eq. (13)): constrain='weighted' (--constrain weighted) holds "
+                "the face between them, constrain='nodes' (--constrain nodes) at every node")
 
     def summary(self, first: int = 0) -> dict[str, float]:
         """What ``run.json`` gets from the time series of steps ``first``+1.. (the minimum of

@@ -104,7 +104,8 @@ def readme_block(language, section="## Quick start"):
 def test_readme_command_line_quick_start(tmp_path):
     """Every line of the README's shell quick start, as printed (the venv's Python is this one). As the
     README says below it, each run with P2 displacements and the vertex constraint (its run.json says)
-    ends with one warning line, naming --constrain nodes, and the other commands print none."""
+    ends with one warning line, naming --constrain weighted and nodes, and the other commands print none
+    (the P2 push with the weighted gap among them: its force is E A d / H too)."""
     (tmp_path / "demos").symlink_to(ROOT / "demos")
     lines = [ln for ln in readme_block("sh").splitlines() if ln.strip()]
     assert len(lines) >= 4
@@ -118,16 +119,18 @@ def test_readme_command_line_quick_start(tmp_path):
         out = cmd[cmd.index("--out") + 1] if "--out" in cmd else None
         info = json.loads((tmp_path / out / "run.json").read_text()) if out else {}
         if info.get("pair", "").startswith("P2") and info["run_options"]["constrain"] == "vertices":
-            assert len(warned) == 1 and "--constrain nodes" in warned[0], (line, p.stderr)
+            assert len(warned) == 1 and "--constrain nodes" in warned[0] and "--constrain weighted" in warned[0], \
+                (line, p.stderr)
         else:
             assert not warned, (line, p.stderr)
         if out:                                                   # a run: its files
             for name in ("timeseries.csv", "run.json", "solution.xdmf", "state.h5"):
                 assert (tmp_path / out / name).is_file(), f"{line}: no {name}"
     assert_picture(tmp_path / "output" / "m.png")
-    push = (tmp_path / "output" / "push" / "timeseries.csv").read_text().splitlines()   # E A d / H: 20 N/mm
-    force = float(push[-1].split(",")[push[0].split(",").index("contact_force")])
-    assert abs(force - 1000.0 * 20.0 * 0.010 / 10.0) < 5e-3 * 20.0, force
+    for run in ("push", "push-p2"):
+        push = (tmp_path / "output" / run / "timeseries.csv").read_text().splitlines()   # E A d / H: 20 N/mm
+        force = float(push[-1].split(",")[push[0].split(",").index("contact_force")])
+        assert abs(force - 1000.0 * 20.0 * 0.010 / 10.0) < 5e-3 * 20.0, (run, force)
     inspect = [v for k, v in outputs.items() if " inspect " in k]
     assert inspect and "WELL-POSED" in inspect[0] and "ILL-POSED" in inspect[0]
 
