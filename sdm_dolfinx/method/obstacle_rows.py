@@ -104,9 +104,15 @@ class ObstacleRows:
         c = p.constraint_component or 0
         blocks = (np.asarray(d.cdofs, dtype=np.int64) - c) // bs
         self.dofs = (blocks[:, None] * bs + np.arange(self.gdim)[None, :]).astype(np.int32)
-        #: the rows' entries at Dirichlet dofs (constant data: a Dirichlet part on the contact face is
+        #: the rows' entries at Dirichlet dofs (constant data: a Dirichlet part at a constrained node is
         #: refused), which X does not change: their terms n_c X_c = n_c U^n_c leave the row
         self.free = ~np.isin(self.dofs, np.asarray(d.ddofs))
+        moving = np.concatenate([np.asarray(k, dtype=np.int64) for k in d.part_dofs]) if d.part_dofs else np.zeros(0)
+        n = d.comm.allreduce(int(np.count_nonzero(np.isin(self.dofs, moving))), op=MPI.SUM)
+        if n:
+            raise DiscretisationError(f"{label(p)}: a Dirichlet part prescribes {n} components of the nodes the "
+                                      f"obstacles constrain (their rows would take its data at the wrong time): leave "
+                                      f"the contact boundary out of the parts")
         self.x = np.asarray(d.cx, dtype=float)
         bblocks = (np.asarray(d.bdofs, dtype=np.int64) - c) // bs
         self.bdofs = (bblocks[:, None] * bs + np.arange(self.gdim)[None, :]).astype(np.int32)

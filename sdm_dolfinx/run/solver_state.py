@@ -27,7 +27,11 @@ iterations instead of 1, and the continued runs differed by up to 1e-8 relative 
 elastic energy of the sticking block, the dissipated energy of the sticking ball). They are
 stored per contact vertex, by its coordinates.
 
-This reads the solver's internals (``solver.schur``, its ``fac`` and ``_ensure_columns``;
+The gap-row Newton (:mod:`~sdm_dolfinx.solvers.gap_newton`: obstacles, the weighted gap) caches
+columns of any dof of W^h (a weighted row reads the facets' dofs): its batches are recorded by
+each dof's coordinates and component.
+
+This reads the solver's internals (``solver.schur``, its ``fac`` and ``_ensure_columns``; ``solver.rows``;
 the frictional solver's ``fac``, ``column_ids``, ``cache_columns``, ``state``): a step solver
 without them has no such history to restore.
 """
@@ -60,7 +64,13 @@ class SolverHistory:
         self.batches = []
         self.friction = solver if hasattr(solver, "cache_columns") and hasattr(solver, "state") else None
         schur = getattr(solver, "schur", None)
-        if self.friction is not None:
+        #: the gap-row Newton (obstacles, the weighted gap): its columns are any dofs of W^h, named by
+        #: their dof's coordinates and component
+        self.by_dof = hasattr(solver, "rows") and hasattr(solver.rows, "_ensure_columns")
+        if self.by_dof:
+            fac, self.gc = solver.fac, np.zeros(0, dtype=np.int64)
+            self._ensure = lambda gids: solver.rows._ensure_columns([int(g) for g in gids])
+        elif self.friction is not None:
             fac, self.gc = solver.fac, np.asarray(solver.column_ids, dtype=np.int64)
             self._ensure = solver.cache_columns
         elif schur is not None and hasattr(schur, "_ensure_columns"):
@@ -83,8 +93,15 @@ class SolverHistory:
 
     def _counters(self):
         solver = self.integ.solver
-        return {name: getattr(solver, name) for name in ("schur", "inactive")
+        return {name: getattr(solver, name) for name in ("schur", "inactive", "rows")
                 if getattr(getattr(solver, name, None), "its", None) is not None}
+
+    def _dofs(self):
+        """(this rank's first global row, the owned dofs' coordinates (n, 3), the block size) of W^h."""
+        d = self.integ.discretisation
+        bs = d.W.dofmap.index_map_bs
+        n = d.W.dofmap.index_map.size_local
+        return d.W.dofmap.index_map.local_range[0] * bs, d._dof_x()[:n], bs
 
     def capture(self):
         """Arrays for the checkpoint (collective): ``columns_x`` (coordinates of each cached
@@ -103,6 +120,8 @@ class SolverHistory:
                 "columns_batch": np.zeros(0, dtype=np.int64)}
         if self.gc is None or not self.batches:
             return none
+        if self.by_dof:
+            return self._capture_by_dof(none)
         gids = np.concatenate(self.batches)
         batch = np.concatenate([np.full(len(b), i) for i, b in enumerate(self.batches)])
         cx = self._cx
@@ -117,6 +136,21 @@ class SolverHistory:
         comm = self.integ.discretisation.comm
         xs, cs = np.empty_like(x), np.empty_like(comp)
         comm.Allreduce(x, xs, op=MPI.SUM)               # each column's constraint is owned once
+        comm.Allreduce(comp, cs, op=MPI.SUM)
+        return {"columns_x": xs, "columns_comp": cs, "columns_batch": batch.astype(np.int64)}
+
+    def _capture_by_dof(self, none):
+        """The gap-row Newton's columns: each by its dof's coordinates and component (collective)."""
+        gids = np.concatenate(self.batches)
+        batch = np.concatenate([np.full(len(b), i) for i, b in enumerate(self.batches)])
+        r0, xd, bs = self._dofs()
+        local = gids - r0
+        mine = (local >= 0) & (local < len(xd) * bs)
+        x, comp = np.zeros((len(gids), 3)), np.zeros(len(gids), dtype=np.int64)
+        x[mine], comp[mine] = xd[local[mine] // bs], local[mine] % bs
+        comm = self.integ.discretisation.comm
+        xs, cs = np.empty_like(x), np.empty_like(comp)
+        comm.Allreduce(x, xs, op=MPI.SUM)               # each dof is owned once
         comm.Allreduce(comp, cs, op=MPI.SUM)
         return {"columns_x": xs, "columns_comp": cs, "columns_batch": batch.astype(np.int64)}
 
@@ -156,11 +190,16 @@ class SolverHistory:
         if self.gc is None or x is None or not len(x):
             return
         comp = data.get("columns_comp", np.zeros(len(x), dtype=np.int64))
-        cx = self._cx
-        m = cx.shape[1]
-        idx, hit = _nearest(cx.T, x)            # the vertex of each saved column, on its owner
         gids = np.full(len(x), -1, dtype=np.int64)
-        gids[hit] = self.gc[comp[hit] * m + idx[hit]]
+        if self.by_dof:                          # the dof of each saved column, on its owner
+            r0, xd, bs = self._dofs()
+            idx, hit = _nearest(xd, x)
+            gids[hit] = r0 + idx[hit] * bs + comp[hit]
+        else:
+            cx = self._cx
+            m = cx.shape[1]
+            idx, hit = _nearest(cx.T, x)            # the vertex of each saved column, on its owner
+            gids[hit] = self.gc[comp[hit] * m + idx[hit]]
         found = np.empty_like(gids)
         comm.Allreduce(gids, found, op=MPI.MAX)
         if np.all(found >= 0):                   # else: not this mesh (checked before)

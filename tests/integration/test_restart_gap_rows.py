@@ -1,0 +1,53 @@
+"""A restart of a run with gap rows (a curved obstacle; the weighted gap) continues it exactly.
+
+As for the unit rows (test_restart.py): U, V, the active set and the gap-row Newton's cached columns
+K^-1 e_j (recorded by their dof's coordinates and component, replayed in their batches) are
+restored, so the continued run is bit-identical to the uninterrupted one on 1 rank (RTOL 0); on 2
+ranks the restarted process factorises anew (MUMPS is not bit-reproducible from run to run), so
+1e-9 of each column's scale there. Stopped during contact: the disc in the bowl
+(demos/bowl_problem.py, dt = T0/1000, stopped at step 60 of 120) and the P2 block pushed with the
+weighted gap (demos/pushed_block_problem.py, stopped at step 40 of 70, the face in contact).
+"""
+import json
+from pathlib import Path
+
+from mpi4py import MPI
+
+import numpy as np
+import pytest
+
+from sdm_dolfinx.problems import load_file
+from sdm_dolfinx.run import simulate
+
+COMM = MPI.COMM_WORLD
+RTOL = 0.0 if COMM.size == 1 else 1e-9
+DEMOS = Path(__file__).resolve().parents[2] / "demos"
+
+
+def _csv(path):
+    return np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+
+
+@pytest.mark.parametrize("case", ["bowl", "weighted"])
+def test_a_run_with_gap_rows_restarts_exactly(case, mpi_tmp_path):
+    if case == "bowl":
+        spec = load_file(DEMOS / "bowl_problem.py")
+        T0 = spec.problem(COMM).parameters["period"]
+        make, kw, stop = (lambda: spec.problem(COMM)), dict(pair="P1+/P0", dt=T0 / 1000, T=120 * T0 / 1000), 60
+    else:
+        spec = load_file(DEMOS / "pushed_block_problem.py")
+        make, kw, stop = (lambda: spec.problem(COMM)), dict(pair="P2/P1", constrain="weighted", dt=1e-4, T=7e-3), 40
+    simulate(make(), out=mpi_tmp_path / "ref", **kw)
+    with pytest.raises(Exception) as e:
+        simulate(make(), out=mpi_tmp_path / "cut", checkpoint_every=7, on_step=lambda n, row: n == stop, **kw)
+    assert type(e.value).__name__ == "Interrupted"
+    simulate(make(), out=mpi_tmp_path / "cut", checkpoint_every=7, restart=True, **kw)
+    if COMM.rank == 0:
+        info = json.loads((mpi_tmp_path / "cut" / "run.json").read_text())
+        assert info["status"] == "finished"
+        a, b = _csv(mpi_tmp_path / "ref" / "timeseries.csv"), _csv(mpi_tmp_path / "cut" / "timeseries.csv")
+        header = (mpi_tmp_path / "ref" / "timeseries.csv").read_text().splitlines()[0].split(",")
+        force = a[:, header.index("contact_force")]
+        assert force[stop - 5:stop + 5].min() > 0                  # stopped in contact
+        scale = np.maximum(np.abs(a).max(axis=0), 1e-300)
+        assert a.shape == b.shape and np.all(np.abs(a - b) <= RTOL * scale)
