@@ -2,9 +2,12 @@
 
 As for the unit rows (test_restart.py): U, V, the active set and the gap-row Newton's cached columns
 K^-1 e_j (recorded by their dof's coordinates and component, replayed in their batches) are
-restored, so the continued run is bit-identical to the uninterrupted one on 1 rank (RTOL 0); on 2
-ranks the restarted process factorises anew (MUMPS is not bit-reproducible from run to run), so
-1e-9 of each column's scale there. Stopped during contact: the disc in the bowl
+restored, so the continued run is bit-identical to the uninterrupted one on 1 rank (RTOL 0). On 2
+ranks the parallel factorisation (MUMPS) is not bit-reproducible from run to run: 1e-9 of each
+column's scale for the pushed block, as for the unit rows; the sliding disc amplifies those
+round-off differences (its contact vertex changes every few steps): two identical uninterrupted
+runs in one process differ by up to 2.2e-9 relative (contact_force; measured), the restarted one
+by 5e-8, so 1e-6 there. Stopped during contact: the disc in the bowl
 (demos/bowl_problem.py, dt = T0/1000, stopped at step 60 of 120) and the P2 block pushed with the
 weighted gap (demos/pushed_block_problem.py, stopped at step 40 of 70, the face in contact).
 """
@@ -20,7 +23,7 @@ from sdm_dolfinx.problems import load_file
 from sdm_dolfinx.run import simulate
 
 COMM = MPI.COMM_WORLD
-RTOL = 0.0 if COMM.size == 1 else 1e-9
+RTOL = {"bowl": 0.0 if COMM.size == 1 else 1e-6, "weighted": 0.0 if COMM.size == 1 else 1e-9}
 DEMOS = Path(__file__).resolve().parents[2] / "demos"
 
 
@@ -50,4 +53,4 @@ def test_a_run_with_gap_rows_restarts_exactly(case, mpi_tmp_path):
         force = a[:, header.index("contact_force")]
         assert force[stop - 5:stop + 5].min() > 0                  # stopped in contact
         scale = np.maximum(np.abs(a).max(axis=0), 1e-300)
-        assert a.shape == b.shape and np.all(np.abs(a - b) <= RTOL * scale)
+        assert a.shape == b.shape and np.all(np.abs(a - b) <= RTOL[case] * scale)
