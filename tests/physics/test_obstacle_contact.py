@@ -4,7 +4,9 @@
   ``HalfSpace((0, 0), (0, 1))`` instead of ``lower_bound = -y``: each row is n . X_i >= n . U^n_i -
   phi(a_i + U^n_i) = U^n_y - (y_i + U^n_y) = -y_i, the same bound; the gap-row solver then does the
   dense Schur complement's arithmetic on the same numbers (a zero coefficient reads no column), so
-  the histories agree to round-off: asserted 1e-12 of each column's scale (measured 0).
+  the histories agree to round-off: asserted 1e-12 of each column's scale on 1 rank (measured 0), 1e-10
+  on more (two runs on several ranks differ at round-off: the parallel factorisation is not
+  bit-reproducible from run to run; measured 4e-12 on 3 ranks).
 * **An inclined plane is tilted gravity (rotation invariance).** A block on the plane through 0
   with normal n = (-sin t, cos t), mesh rotated by t, vertical gravity, against the same block
   axis-aligned on y >= 0 with gravity rotated by -t: the discrete problems are the same up to the
@@ -67,9 +69,10 @@ def test_a_plane_declared_as_a_signed_distance_is_the_old_bound(pair):
     new = simulate(p, **kw)
     assert max(old.timeseries["contact_force"]) > 0          # the disc did hit the plane
     assert new.info["linear_strategy_reason"].startswith("obstacles")   # through the gap rows
+    tol = 1e-12 if COMM.size == 1 else 1e-10
     for c in ("energy", "contact_force", "u_probe", "gap_min_boundary", "n_active"):
-        assert _scale_diff(old.timeseries[c], new.timeseries[c]) <= 1e-12, c
-    assert abs(old.info["min_gap_end"] - new.info["min_gap_end"]) <= 1e-12
+        assert _scale_diff(old.timeseries[c], new.timeseries[c]) <= tol, c
+    assert abs(old.info["min_gap_end"] - new.info["min_gap_end"]) <= tol
 
 
 W, H, E, NU, RHO, G = 20.0, 10.0, 1000.0, 0.3, 1e-6, 9810.0
