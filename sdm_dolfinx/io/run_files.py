@@ -130,8 +130,9 @@ class RunFiles:
         if not obstacles:
             return None
         x = problem.mesh.geometry.x
-        lo = self.comm.allreduce(x.min(axis=0) if len(x) else np.full(3, np.inf), op=MPI.MIN)
-        hi = self.comm.allreduce(x.max(axis=0) if len(x) else np.full(3, -np.inf), op=MPI.MAX)
+        lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+        self.comm.Allreduce(x.min(axis=0) if len(x) else lo.copy(), lo, op=MPI.MIN)
+        self.comm.Allreduce(x.max(axis=0) if len(x) else hi.copy(), hi, op=MPI.MAX)
         box = enlarged_box(lo, hi, BOX_FACTOR)
         path = self.out / OBSTACLES_XDMF
         kept = [(int(n), int(n) * self.dt) for n in kept]
