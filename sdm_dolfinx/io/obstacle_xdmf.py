@@ -88,9 +88,16 @@ class ObstacleWriter:
         """Append the grid of step ``n`` at the time ``t``."""
         text = self._grid(n, t)
         with open(self.path, "r+b") as fh:
-            fh.seek(-len(_TAIL), os.SEEK_END)
-            fh.write((text + _TAIL).encode())
-            fh.truncate()
+            end = fh.seek(-len(_TAIL), os.SEEK_END)
+            try:
+                fh.write((text + _TAIL).encode())
+                fh.truncate()
+                fh.flush()
+            except OSError:                          # (a full disc) the file as it was: no more space needed
+                fh.seek(end)
+                fh.write(_TAIL.encode())
+                fh.truncate()
+                raise
         self.steps.append(n)
 
     def drop(self, n):

@@ -145,6 +145,7 @@ class RunFiles:
         if self.comm.rank == 0:
             self.out.mkdir(parents=True, exist_ok=True)
             (self.out / checkpoint.CHECKPOINT).unlink(missing_ok=True)
+            (self.out / OBSTACLES_XDMF).unlink(missing_ok=True)           # a previous run's obstacles
             for name in H5_FILES:
                 journal.undo_path(self.out / name).unlink(missing_ok=True)
                 self.journals[name] = JournaledFile(self.out / name)

@@ -114,6 +114,21 @@ def test_a_restart_writes_the_kept_steps_again(runs):
     COMM.Barrier()
 
 
+def test_a_run_without_obstacles_leaves_none_behind(runs):
+    """--overwrite with a problem that declares none: the previous run's obstacles.xdmf is removed."""
+    copy = Path(COMM.bcast(tempfile.mkdtemp(prefix="sdm_obstacle_overwrite_") if COMM.rank == 0 else None, root=0))
+    if COMM.rank == 0:
+        shutil.copytree(runs["floor2d"], copy / "run")
+    COMM.Barrier()
+    assert (copy / "run" / "obstacles.xdmf").is_file()
+    assert cli.main(["run", "--problem", "block", "--nx", "4", "--ny", "2", "--constrain", "nodes", "--dt", "2e-4",
+                     "--T", "4e-4", "--out", str(copy / "run"), "--overwrite", "--quiet"]) == 0
+    assert not (copy / "run" / "obstacles.xdmf").exists()
+    COMM.Barrier()
+    if COMM.rank == 0:
+        shutil.rmtree(copy, ignore_errors=True)
+
+
 def _grey(png):
     """The number of pixels of the obstacles' grey (render_pv.GREY or matplotlib's 0.5/0.6) in ``png``."""
     import matplotlib.image as mpimg
