@@ -43,7 +43,7 @@ from sdm_dolfinx.post.rebuild_run import rebuild_problem
 from sdm_dolfinx.problems.base import bound_at, one_line
 
 #: the Problems built again, by run.json's contents (one picture asks several times and boxes)
-_REBUILT = {}
+_REBUILT: dict = {}
 
 #: obstacle points whose coordinate x_c (or bound) varies by less than this, relative to the
 #: body's size (or to the largest bound), form a flat obstacle
