@@ -103,11 +103,12 @@ def _shapes(problem, vertices_of_run, times, box):
         shapes.append({"time": None if t is None else float(t), "points": m["points"].tolist(),
                        "cells": m["cells"].tolist()})
         missing = m["missing"]
-    kinds = ", ".join(dict.fromkeys(getattr(ob, "kind", type(ob).__name__) + (" (inside)" if getattr(ob, "inside", False)
-                                                                              else "") for ob in obstacles))
+    def kind(ob):
+        return getattr(ob, "kind", type(ob).__name__) + (" (inside)" if getattr(ob, "inside", False) else "")
+    kinds = ", ".join(dict.fromkeys(kind(ob) for ob in obstacles))
     note = f"grey: the obstacle{'s' if len(obstacles) > 1 else ''} ({kinds})"
     if moving:
-        movers = ", ".join(dict.fromkeys(ob.kind for ob in obstacles if getattr(ob, "moves", False)))
+        movers = ", ".join(dict.fromkeys(kind(ob) for ob in obstacles if getattr(ob, "moves", False)))
         at = "each frame's time" if len(shapes) > 1 else f"t = {0.0 if times[0] is None else float(times[0]):.4g}"
         note += f" at {at} (moving: {movers})"
     if missing:
