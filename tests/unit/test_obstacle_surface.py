@@ -113,3 +113,26 @@ def test_the_enlarged_box():
     assert lo.tolist() == [-2.0, -2.5, 0.0] and hi.tolist() == [4.0, 3.5, 0.0]
     lo, hi = enlarged_box((0.0, 0.0, 0.0), (2.0, 1.0, 1.0), 0.5)
     assert lo.tolist() == [0.0, -0.5, -0.5] and hi.tolist() == [2.0, 1.5, 1.5]
+
+
+def test_a_surface_mesh_is_its_triangles_moved(tmp_path):
+    """The unit tetrahedron of a .msh, translated by s(t): its four triangles (total area 3/2 + sqrt(3)/2)
+    at their place, every point on the surface (phi = 0); cut by a box, the part inside."""
+    from sdm_dolfinx.obstacles import SurfaceMesh
+    p = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float)
+    path = tmp_path / "tet.msh"
+    with open(path, "w") as f:
+        f.write("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n4\n")
+        f.writelines(f"{i + 1} {x!r} {y!r} {z!r}\n" for i, (x, y, z) in enumerate(p))
+        f.write("$EndNodes\n$Elements\n4\n")
+        f.writelines(f"{i + 1} 2 2 0 1 {a + 1} {b + 1} {c + 1}\n" for i, (a, b, c) in
+                     enumerate([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]))
+        f.write("$EndElements\n")
+    tet = SurfaceMesh(path, motion=lambda t: (t, 0.0, -t))
+    tri = surface(tet, 0.5, (LO, HI))
+    assert _area(tri) == pytest.approx(1.5 + np.sqrt(3) / 2, rel=1e-14)
+    assert np.max(np.abs(tet.distance(tri.reshape(-1, 3).T, 0.5)[0])) <= 1e-14
+    assert sorted(map(tuple, np.unique(tri.reshape(-1, 3), axis=0))) == \
+        sorted(map(tuple, p + [0.5, 0.0, -0.5]))
+    half = surface(tet, 0.5, (LO, np.array([3.0, 2.0, 0.0])))            # the part below z = 0
+    assert np.all(half[:, :, 2] <= 0.0) and 0 < _area(half) < 1.5 + np.sqrt(3) / 2
