@@ -2,7 +2,8 @@
 (docs/outputs.md), written beside ``solution.xdmf`` and read back by :func:`read_obstacles`.
 
 One XDMF file, its data inline (XML, 17 significant digits: read back exactly; no HDF5 file), a
-temporal collection with one Grid per written step (``Name="step_<n>"``, ``Time`` t_n): 2-D the
+temporal collection with one Grid per written step (``Name="step_<n>"``, ``Time`` t_n; fixed obstacles: the
+first grid's mesh included in the others with ``xi:include``, as dolfinx's own XDMF does): 2-D the
 segments of the obstacles' outlines (``Polyline``, 2 nodes per element), 3-D their triangulated
 surfaces (``Triangle``), each clipped to one box fixed for the run (the body's reference bounding box
 grown to ``BOX_FACTOR`` times its largest side on each side of its middle:
@@ -25,7 +26,8 @@ from pathlib import Path
 #: the box of the pictures: half sides this many times the body's largest side
 BOX_FACTOR = 1.5
 NAME = "obstacles.xdmf"
-_HEAD = ('<?xml version="1.0"?>\n<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>\n<Xdmf Version="3.0">\n  <Domain>\n'
+_HEAD = ('<?xml version="1.0"?>\n<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>\n'
+         '<Xdmf Version="3.0" xmlns:xi="http://www.w3.org/2001/XInclude">\n  <Domain>\n'
          '    <Grid Name="obstacles" GridType="Collection" CollectionType="Temporal">\n')
 _TAIL = "    </Grid>\n  </Domain>\n</Xdmf>\n"
 
@@ -34,14 +36,22 @@ def _numbers(a, fmt):
     return "\n".join(" ".join(fmt % v for v in row) for row in a.reshape(len(a), -1))
 
 
-def grid_xml(n, t, m):
-    """The Grid of step ``n`` at the time ``t`` for the mesh ``m`` (:func:`sdm_dolfinx.obstacles.surface.mesh`)."""
+#: a fixed obstacle's later grids: the first grid's mesh and attribute (as dolfinx's solution.xdmf does)
+_SAME = ('        <xi:include xpointer="xpointer(/Xdmf/Domain/Grid/Grid[1]/*[self::Topology or self::Geometry or '
+         'self::Attribute])" />\n')
+
+
+def grid_xml(n, t, m, same=False):
+    """The Grid of step ``n`` at the time ``t`` for the mesh ``m`` (:func:`sdm_dolfinx.obstacles.surface.mesh`);
+    ``same``: the first grid's mesh, included (a fixed obstacle)."""
     points, cells, which = m["points"], m["cells"], m["which"]
     out = [f'      <Grid Name="step_{n}" GridType="Uniform">\n        <Time Value="{float(t)!r}" />\n']
     if m["missing"]:
         said = escape(", ".join(m["missing"]), {'"': "&quot;"})
         out.append(f'        <Information Name="not_written" Value="{said}" />\n')
-    if len(cells):
+    if len(cells) and same:
+        out.append(_SAME)
+    elif len(cells):
         kind = "Polyline\" NodesPerElement=\"2" if cells.shape[1] == 2 else "Triangle"
         out.append(f'        <Topology TopologyType="{kind}" NumberOfElements="{len(cells)}">\n'
                    f'          <DataItem Dimensions="{len(cells)} {cells.shape[1]}" NumberType="Int" '
@@ -71,10 +81,12 @@ class ObstacleWriter:
         self.moving = any(getattr(ob, "moves", False) for ob in self.obstacles)
         self._fixed = None
         self.steps = []
-        body = "".join(self._grid(n, t) for n, t in (kept or []))
+        body = []
+        for n, t in kept or []:
+            body.append(self._grid(n, t))
+            self.steps.append(n)
         with open(self.path, "w") as fh:
-            fh.write(_HEAD + body + _TAIL)
-        self.steps = [n for n, _ in (kept or [])]
+            fh.write(_HEAD + "".join(body) + _TAIL)
 
     def _grid(self, n, t):
         from sdm_dolfinx.obstacles.surface import mesh
@@ -82,7 +94,7 @@ class ObstacleWriter:
             return grid_xml(n, t, mesh(self.obstacles, t, self.box))
         if self._fixed is None:
             self._fixed = mesh(self.obstacles, 0.0, self.box)
-        return grid_xml(n, t, self._fixed)
+        return grid_xml(n, t, self._fixed, same=bool(self.steps))
 
     def write(self, n, t):
         """Append the grid of step ``n`` at the time ``t``."""
@@ -119,11 +131,14 @@ def read_obstacles(path):
     path = Path(path)
     if path.is_dir():
         path = path / NAME
-    out = []
+    out, first = [], None
     for g in ET.parse(path).getroot().iter("Grid"):
         if g.get("GridType") != "Uniform":
             continue
-        top, geo, att = g.find("Topology"), g.find("Geometry"), g.find("Attribute")
+        first = g if first is None else first
+        same = g.find("{http://www.w3.org/2001/XInclude}include") is not None      # the first grid's mesh
+        top, geo, att = (first if same else g).find("Topology"), (first if same else g).find("Geometry"), \
+            (first if same else g).find("Attribute")
 
         def array(item, dtype, shape):
             return np.array(item.find("DataItem").text.split(), dtype=dtype).reshape(shape)

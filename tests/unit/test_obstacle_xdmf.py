@@ -53,3 +53,16 @@ def test_what_is_not_written_is_named_and_a_restart_writes_the_kept_steps(tmp_pa
         assert g["cells"].shape[1] == 2 and g["not_written"] == "half-space (obstacle 1)"
         assert g["points"][:, 1] == pytest.approx(-0.5 + g["t"], abs=1e-15)
         assert sorted(g["points"][:, 0]) == [-1.0, 1.0]                     # the floor across the box
+
+
+def test_a_fixed_obstacle_is_written_once(tmp_path):
+    """Fixed obstacles: the first grid holds the mesh, the others include it (read back the same)."""
+    path = tmp_path / "obstacles.xdmf"
+    w = ObstacleWriter(path, [Ball((0.0, 0.0, 0.0), 0.5)], BOX, kept=[(0, 0.0), (4, 0.4)])
+    w.write(8, 0.8)
+    grids = read_obstacles(path)
+    assert [g["step"] for g in grids] == [0, 4, 8] and path.read_text().count("<xi:include") == 2
+    assert path.read_text().count("<Geometry") == 1
+    for g in grids:
+        assert np.array_equal(g["points"], grids[0]["points"]) and np.array_equal(g["cells"], grids[0]["cells"])
+        assert np.max(np.abs(np.linalg.norm(g["points"], axis=1) - 0.5)) <= 1e-15
