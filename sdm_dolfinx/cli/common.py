@@ -111,7 +111,7 @@ def folder_path(text):
 
 #: the files of a run folder (docs/outputs.md) that no command writes but the run (and energy its own)
 RUN_FOLDER_FILES = ("run.json", "timeseries.csv", "solution.xdmf", "solution.h5", "state.h5", "checkpoint.npz",
-                    "energy_recomputed.csv", ".lock")
+                    "obstacles.xdmf", "energy_recomputed.csv", ".lock")
 
 
 def check_writable(path, what):

@@ -99,9 +99,9 @@ def main(argv=None, comm=MPI.COMM_WORLD):
     src, series = checked["src"], checked["series"]
     if series is not None:               # built before anything is written (a warning if unknown)
         if args.png:
-            render.obstacle_of(series, render.check_time(series, args.time))
+            render.obstacle_of(series, render.check_time(series, args.time), scale=args.scale)
         if args.gif:
-            render.obstacle_of(series)
+            render.obstacle_of(series, times=series.times[::args.every or 1], scale=args.scale)
     if args.merge:
         print(f"wrote {render.merge_xdmf(src)}")
     if args.png:

@@ -291,5 +291,6 @@ def execute(the_plan, args, argv, prog, comm):
         i = result.info
         print(f"done in {i['wall_time']:.1f} s: dim W = {i['dim_W']}, dim H = {i['dim_H']}, N_g = {i['N_g']}; "
               f"energy {result.timeseries['energy'][0]:.6g} -> {result.timeseries['energy'][-1]:.6g}; "
-              f"wrote {the_plan.out}/timeseries.csv, run.json, solution.xdmf", flush=True)
+              f"wrote {the_plan.out}/timeseries.csv, run.json, solution.xdmf"
+              + (", obstacles.xdmf" if (i.get("problem") or {}).get("obstacles") else ""), flush=True)
     return 0

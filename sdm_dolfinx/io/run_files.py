@@ -1,5 +1,6 @@
-"""The files of a run folder: ``run.json``, ``timeseries.csv``, ``solution.xdmf``, ``state.h5``
-(and ``checkpoint.npz``, see :mod:`.restart`). docs/outputs.md describes them.
+"""The files of a run folder: ``run.json``, ``timeseries.csv``, ``solution.xdmf``, ``state.h5``,
+``obstacles.xdmf`` (a problem with ``obstacles``; :mod:`.obstacle_xdmf`) (and ``checkpoint.npz``, see
+:mod:`.restart`). docs/outputs.md describes them.
 
 What a fault leaves (docs/outputs.md, "What survives which fault"): every file is complete up
 to the last checkpoint whatever the moment a run is killed, and up to the last good step
@@ -16,6 +17,7 @@ from sdm_dolfinx.mpiutil import atomic_write_text, json_text
 from sdm_dolfinx.io import checkpoint
 from sdm_dolfinx.io import journal
 from sdm_dolfinx.io.journal import FileVanished, JournaledFile
+from sdm_dolfinx.io.obstacle_xdmf import BOX_FACTOR, NAME as OBSTACLES_XDMF, ObstacleWriter
 from sdm_dolfinx.io.series_files import CSVWriter, StateWriter
 from sdm_dolfinx.io.xdmf_writer import XDMFWriter
 
@@ -91,7 +93,8 @@ class RunFiles:
         self.write_every = write_every or 10
         self.last_row = -1
         comm, out = self.comm, self.out
-        self.csv = self.xdmf = self.state = None
+        self.csv = self.xdmf = self.state = self.obstacles = None
+        self.has_obstacles = False
         self.journals = {name: None for name in H5_FILES}
         first = restart[0] if restart is not None else 0
         if restart is None:
@@ -113,6 +116,28 @@ class RunFiles:
         self.state = agree(comm, StateWriter, out / "state.h5", discretisation, block, fingerprint,
                            self.journals["state.h5"], not (append and restart["state"]), path=out / "state.h5")
         self.state_missing = append and not restart["state"]
+        self.obstacles = self._obstacle_writer(discretisation, xsteps or [])
+
+    def _obstacle_writer(self, discretisation, kept):
+        """The writer of ``obstacles.xdmf`` on rank 0 (None elsewhere, and without obstacles): their
+        surfaces clipped to the body's reference bounding box grown by BOX_FACTOR (collective)."""
+        import numpy as np
+        from mpi4py import MPI
+        from sdm_dolfinx.obstacles.surface import enlarged_box
+        problem = discretisation.problem
+        obstacles = list(getattr(problem, "obstacles", None) or [])
+        self.has_obstacles = bool(obstacles)          # the same on every rank
+        if not obstacles:
+            return None
+        x = problem.mesh.geometry.x
+        lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+        self.comm.Allreduce(x.min(axis=0) if len(x) else lo.copy(), lo, op=MPI.MIN)
+        self.comm.Allreduce(x.max(axis=0) if len(x) else hi.copy(), hi, op=MPI.MAX)
+        box = enlarged_box(lo, hi, BOX_FACTOR)
+        path = self.out / OBSTACLES_XDMF
+        kept = [(int(n), int(n) * self.dt) for n in kept]
+        return agree(self.comm, lambda: ObstacleWriter(path, obstacles, box, kept) if self.comm.rank == 0 else None,
+                     path=path)
 
     # ------------------------------------------------------------------ new run / restart
     def _clear(self):
@@ -120,6 +145,7 @@ class RunFiles:
         if self.comm.rank == 0:
             self.out.mkdir(parents=True, exist_ok=True)
             (self.out / checkpoint.CHECKPOINT).unlink(missing_ok=True)
+            (self.out / OBSTACLES_XDMF).unlink(missing_ok=True)           # a previous run's obstacles
             for name in H5_FILES:
                 journal.undo_path(self.out / name).unlink(missing_ok=True)
                 self.journals[name] = JournaledFile(self.out / name)
@@ -174,6 +200,13 @@ class RunFiles:
         write fails (a full disc), what the others wrote of step ``n`` is taken back out, and so is
         its time-series row, so that every file ends at the last good step (the time series held a
         step that state.h5 did not)."""
+        if self.has_obstacles:
+            try:
+                agree(self.comm, lambda: self.obstacles.write(n, n * self.dt) if self.comm.rank == 0 else None,
+                      path=self.out / OBSTACLES_XDMF)
+            except RunFileError:
+                self._take_back(n)
+                raise
         try:
             agree(self.comm, self.state.write, U, V, n, n * self.dt, path=self.out / "state.h5")
         except RunFileError:
@@ -190,6 +223,8 @@ class RunFiles:
         effort: none of it needs space; the step's error is the one reported)."""
         def undo():
             if self.comm.rank == 0:
+                if self.obstacles is not None:
+                    self.obstacles.drop(n)
                 for name in written:
                     self.journals[name].undo_last()
                 if self.last_row == n:

@@ -167,6 +167,16 @@ class Look:
         hi = max(float(np.max(v)) for v in values)
         return [lo, hi if hi > lo else lo + max(abs(lo), 1.0) * 1e-12]
 
+    def obstacle_shape(self, t):
+        """The obstacles' surface to draw at the time ``t`` (``points`` (n, 3) and ``cells`` (m, 2 or 3)
+        arrays: the fixed one, or the one of the nearest time), or None (a bound, or nothing, is drawn)."""
+        import numpy as np
+        shapes = self.obstacle.get("shapes")
+        if not shapes:
+            return None
+        s = shapes[0] if len(shapes) == 1 else min(shapes, key=lambda s: abs(s["time"] - float(t)))
+        return np.asarray(s["points"], dtype=float).reshape(-1, 3), np.asarray(s["cells"], dtype=np.int64)
+
     def title(self, t, n_active, marker):
         """The title line at time ``t`` with ``n_active`` vertices in contact, drawn in ``marker``."""
         o = self.obstacle
@@ -179,25 +189,45 @@ class Look:
                 + f"; {said}")
 
 
-def obstacle_of(series, time=None):
+#: the obstacles' surfaces are clipped to the box about the drawn body's whose half sides are this many
+#: times its largest side
+OBSTACLE_BOX = 0.75
+
+
+def obstacle_box(series, times, scale):
+    """(lo, hi) (3,): the box the obstacles' surfaces are drawn in, about the body drawn at ``times``."""
+    import numpy as np
+    from sdm_dolfinx.obstacles.surface import enlarged_box
+    lo, hi = render_pv.extent(series, times, scale)
+    return enlarged_box(np.r_[lo, np.zeros(3 - len(lo))], np.r_[hi, np.zeros(3 - len(hi))], OBSTACLE_BOX)
+
+
+def obstacle_of(series, time=None, times=None, scale=None):
     """The obstacle the run's problem declares (:mod:`.render_obstacle`; a moving one where it is at
-    ``time``, the picture's), computed once per Series (a moving one once per time), unless one was
-    given (``series.obstacle``); a :class:`RenderWarning` says why when it cannot be known (it is
-    then not drawn)."""
+    ``time``, the picture's, or, problems with ``obstacles``, at each of ``times``, an animation's: all
+    the stored times when neither is given), computed once per Series (a moving one once per time), unless
+    one was given (``series.obstacle``); a :class:`RenderWarning` says why when it cannot be known (it is
+    then not drawn). ``scale``: the picture's (:func:`check_scale`), which the obstacles' box follows."""
     given = getattr(series, "obstacle", None)
     if given is not None:
         return given
     cache = getattr(series, "obstacles", None)
     if cache is None:
         cache = series.obstacles = {}
-    key = "fixed" if "fixed" in cache else time
+    if time is None and times is None:
+        times = series.times
+    scale = check_scale(kind_of(series), scale)
+    drawn = [time] if times is None else list(times)
+    key = "fixed" if "fixed" in cache else (time, None if times is None else tuple(times), scale)
     if key not in cache:
         if not __package__:
             return {"unknown": "the obstacle is computed by the package (dolfinx), not in this process"}
         import warnings
         from sdm_dolfinx.post.render_obstacle import declared_obstacle
-        found = declared_obstacle(series.run, time)
-        key = time if found.get("moving") else "fixed"
+        declares = kind_of(series) != "membrane" and (series.run.get("problem") or {}).get("obstacles")
+        box = obstacle_box(series, drawn, scale) if declares else None
+        found = declared_obstacle(series.run, time, times, box)
+        key = key if found.get("moving") or "shapes" in found else "fixed"
         cache[key] = found
         if "unknown" in found:
             warnings.warn(f"the obstacle is not drawn: {found['unknown']}", RenderWarning, stacklevel=3)
@@ -304,7 +334,7 @@ def picture(run, png, time=None, scale=None, size=None, obstacle=None):
     """
     series, kind, scale = _prepare(run, time, scale, obstacle)
     t, png = check_time(series, time), check_output(png, (".png",))
-    obstacle = obstacle_of(series, t)
+    obstacle = obstacle_of(series, t, scale=scale)
     look = Look(series, kind, scale, obstacle)
     size = tuple(size or ((1200, 600) if kind == "solid3d" else (900, 700)))
     png.parent.mkdir(parents=True, exist_ok=True)
@@ -342,7 +372,7 @@ def animation(run, path, times=None, scale=None, size=None, fps=12, obstacle=Non
     path = check_output(path, (".gif", ".mp4"))
     if not times:
         raise RenderError(f"{path}: no time to animate")
-    obstacle = obstacle_of(series)
+    obstacle = obstacle_of(series, times=times, scale=scale)
     look = Look(series, kind, scale, obstacle)
     size = tuple(size or ((960, 480) if kind == "solid3d" else (640, 640)))
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -111,6 +111,11 @@ def _solid(fig, series, t, scale, look, clim):
     act = (series.field("active", t) > 0.5) & series.vertex_mask()
     ax.plot(xy[act, 0], xy[act, 1], "o", color="c", ms=4)
     _obstacle_2d(ax, look.obstacle, xy.min(axis=0), xy.max(axis=0))
+    found = look.obstacle_shape(t)
+    if found is not None and len(found[1]):
+        from matplotlib.collections import LineCollection
+        points, cells = found
+        ax.add_collection(LineCollection(points[cells][:, :, :2], colors="0.5", linewidths=3))
     ax.set_aspect("equal")
     ax.set_title(look.title(t, int(act.sum()), "cyan"), fontsize=8)
     fig.colorbar(pc, ax=ax, label=look.colour_title.replace("\n", " "))
@@ -147,6 +152,11 @@ def _solid3d(fig, series, t, scale, look, clim):
             p = np.asarray(o["points"])
             t_ = mtri.Triangulation(p[:, axes[0]], p[:, axes[1]]).triangles
             ax.add_collection3d(Poly3DCollection(p[t_], facecolors="0.6", alpha=0.4))
+    found = look.obstacle_shape(t)
+    if found is not None and len(found[1]):
+        points, cells = found
+        ax.add_collection3d(Poly3DCollection(points[cells], facecolors="0.6", alpha=0.4))
+        lo, hi = np.minimum(lo, points.min(axis=0)), np.maximum(hi, points.max(axis=0))
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
     ax.set_zlim(lo[2], hi[2])

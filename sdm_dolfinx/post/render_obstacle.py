@@ -19,6 +19,16 @@ A moving obstacle (``Problem.moving_bound``, ``lower_bound(x, t)``) is evaluated
 time; an animation, whose frames would each need their own, does not draw it (``{"unknown": ...}``:
 the time series' ``obstacle_probe`` has its position at every step).
 
+A problem declaring ``obstacles`` (signed distances, :mod:`sdm_dolfinx.obstacles`) gets their surfaces
+(:func:`sdm_dolfinx.obstacles.surface.mesh`: 2-D the outlines' segments, 3-D triangles, clipped to the box
+the picture gives)::
+
+    {"component": None, "shapes": [{"time": t or None (fixed), "points": [[x, y, z], ...],
+     "cells": [[i, j(, k)], ...]}, ...] one per time asked (a moving obstacle) or one (fixed),
+     "moving": bool, "note": the picture's words for them}
+
+so that a moving one is drawn at every frame's time, an animation's too.
+
 Or ``{"none": reason}`` when the problem constrains no vertex, or ``{"unknown": reason}`` when the
 obstacle cannot be known (a run of a problem built by hand, a problem file changed since the run).
 """
@@ -32,16 +42,20 @@ from sdm_dolfinx.method.discretisation import vertex_coordinates
 from sdm_dolfinx.post.rebuild_run import rebuild_problem
 from sdm_dolfinx.problems.base import bound_at, one_line
 
+#: the Problems built again, by run.json's contents (one picture asks several times and boxes)
+_REBUILT: dict = {}
+
 #: obstacle points whose coordinate x_c (or bound) varies by less than this, relative to the
 #: body's size (or to the largest bound), form a flat obstacle
 FLAT_TOLERANCE = 1e-9
 
 
-def declared_obstacle(run, time=None):
+def declared_obstacle(run, time=None, times=None, box=None):
     """The obstacle of the run whose ``run.json`` contents are ``run`` (see the module), a moving one
-    at ``time`` (None: not drawn).
+    at ``time`` (None: a bound is not drawn); ``obstacles`` at each of ``times`` (an animation's, else
+    [time]) clipped to ``box`` = (lo, hi) (default: the body's bounding box grown as obstacles.xdmf's).
 
-    Builds the run's Problem again on this process alone (``MPI.COMM_SELF``).
+    Builds the run's Problem again on this process alone (``MPI.COMM_SELF``), once per ``run``.
     """
     if not run:
         return {"unknown": "no run.json beside solution.xdmf"}
@@ -54,13 +68,52 @@ def declared_obstacle(run, time=None):
             return {"unknown": f"its problem file {source} cannot be read"}
         if now != sha:
             return {"unknown": f"its problem file {source} changed since the run"}
-    try:
-        problem = rebuild_problem(run, MPI.COMM_SELF)
-    except PostprocessError as e:
-        return {"unknown": str(e)}
-    except Exception as e:          # a user's build: any error is said in one line, the picture drawn without it
-        return {"unknown": f"its problem could not be built again ({one_line(e)})"}
+    import json
+    key = json.dumps(run, sort_keys=True, default=str)
+    if key not in _REBUILT:
+        try:
+            _REBUILT[key] = rebuild_problem(run, MPI.COMM_SELF)
+        except PostprocessError as e:
+            _REBUILT[key] = {"unknown": str(e)}
+        except Exception as e:      # a user's build: any error is said in one line, the picture drawn without it
+            _REBUILT[key] = {"unknown": f"its problem could not be built again ({one_line(e)})"}
+    problem = _REBUILT[key]
+    if isinstance(problem, dict):
+        return problem
+    if getattr(problem, "obstacles", None):
+        return _shapes(problem, run.get("mesh", {}).get("vertices"), [time] if times is None else times, box)
     return _evaluate(problem, run.get("mesh", {}).get("vertices"), time)
+
+
+def _shapes(problem, vertices_of_run, times, box):
+    """The problem's ``obstacles`` at ``times`` (None: t = 0) within ``box`` (see the module)."""
+    from sdm_dolfinx.io.obstacle_xdmf import BOX_FACTOR
+    from sdm_dolfinx.obstacles.surface import enlarged_box, mesh
+    msh = problem.mesh
+    nverts = msh.topology.index_map(0).size_local
+    if vertices_of_run is not None and nverts != vertices_of_run:
+        return {"unknown": f"its problem, built again, has {nverts} vertices, the run had {vertices_of_run}"}
+    obstacles = list(problem.obstacles)
+    if box is None:
+        box = enlarged_box(msh.geometry.x.min(axis=0), msh.geometry.x.max(axis=0), BOX_FACTOR)
+    moving = any(getattr(ob, "moves", False) for ob in obstacles)
+    shapes, missing = [], []
+    for t in (times if moving else [None]):
+        m = mesh(obstacles, 0.0 if t is None else float(t), box)
+        shapes.append({"time": None if t is None else float(t), "points": m["points"].tolist(),
+                       "cells": m["cells"].tolist()})
+        missing = m["missing"]
+    def kind(ob):
+        return getattr(ob, "kind", type(ob).__name__) + (" (inside)" if getattr(ob, "inside", False) else "")
+    kinds = ", ".join(dict.fromkeys(kind(ob) for ob in obstacles))
+    note = f"grey: the obstacle{'s' if len(obstacles) > 1 else ''} ({kinds})"
+    if moving:
+        movers = ", ".join(dict.fromkeys(kind(ob) for ob in obstacles if getattr(ob, "moves", False)))
+        at = "each frame's time" if len(shapes) > 1 else f"t = {0.0 if times[0] is None else float(times[0]):.4g}"
+        note += f" at {at} (moving: {movers})"
+    if missing:
+        note += f"; not drawn: {', '.join(missing)}"
+    return {"component": None, "shapes": shapes, "moving": moving, "note": note}
 
 
 def _evaluate(problem, vertices_of_run, time=None):

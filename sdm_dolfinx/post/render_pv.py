@@ -183,6 +183,35 @@ def obstacle_2d(plotter, obstacle, lo, hi):
     return np.minimum(lo, p[:, :2].min(axis=0)), np.maximum(hi, p[:, :2].max(axis=0))
 
 
+def shapes_2d(plotter, look, t, lo=None, hi=None):
+    """The obstacles' outlines at the time ``t`` as grey lines (the same actor replaced at every frame);
+    returns (lo, hi) grown to hold them at every time drawn (None: not asked)."""
+    import numpy as np
+    pv = setup()
+    points, cells = look.obstacle_shape(t)
+    if len(cells):
+        lines = np.hstack([np.full((len(cells), 1), 2), cells]).ravel()
+        plotter.add_mesh(pv.PolyData(points, lines=lines), color=GREY, line_width=5, name="obstacle")
+    else:
+        plotter.remove_actor("obstacle")
+    every = np.concatenate([np.asarray(s["points"], dtype=float).reshape(-1, 3) for s in look.obstacle["shapes"]])
+    if len(every) and lo is not None:
+        lo, hi = np.minimum(lo, every[:, :2].min(axis=0)), np.maximum(hi, every[:, :2].max(axis=0))
+    return lo, hi
+
+
+def shapes_3d(plotter, look, t):
+    """The obstacles' surfaces at the time ``t``, grey and translucent (again at every frame when they move)."""
+    import numpy as np
+    pv = setup()
+    points, cells = look.obstacle_shape(t)
+    if len(cells):
+        faces = np.hstack([np.full((len(cells), 1), 3), cells]).ravel()
+        plotter.add_mesh(pv.PolyData(points, faces=faces), color=GREY, opacity=0.55, name="obstacle")
+    else:
+        plotter.remove_actor("obstacle")
+
+
 def view_2d(plotter, lo, hi):
     """A fixed camera framing the box (lo, hi) with headroom for the title and the colour bar."""
     import numpy as np
@@ -265,11 +294,14 @@ def solid3d_frame(plotter, series, times, frame, scale, clim, look, obstacle):
             plotter.set_background("white")
             if panel == 0:
                 obstacle_3d(plotter, obstacle, lo, hi)
+        if panel == 0 and obstacle.get("shapes") and (frame == 0 or obstacle.get("moving")):
+            shapes_3d(plotter, look, times[frame])
         solid_frame(plotter, series, times[frame], scale, clim, look, bar=panel == 0, title=panel == 0)
         if frame == 0 and panel == 0:
             _camera_3d(plotter, obstacle, lo, hi, 15.0, zoom=0.9)        # room for the colour bar
         elif frame == 0:
-            below = "under the obstacle" if obstacle.get("points") else "below"
+            below = "under the obstacle" if obstacle.get("points") and obstacle.get("component") is not None \
+                else "below"
             if zone is None:
                 _camera_3d(plotter, obstacle, lo, hi, -90.0)
                 text = f"right: the body seen from {below} (no vertex in contact)"
@@ -297,6 +329,10 @@ def draw(plotter, series, times, scale, clim, look, obstacle, frame):
     else:
         if frame == 0:
             lo, hi = obstacle_2d(plotter, obstacle, *extent(series, times, scale))
+            if obstacle.get("shapes"):
+                lo, hi = shapes_2d(plotter, look, t, lo, hi)
+        elif obstacle.get("shapes") and obstacle.get("moving"):
+            shapes_2d(plotter, look, t)
         solid_frame(plotter, series, t, scale, clim, look)
         if frame == 0:
             view_2d(plotter, lo, hi)
