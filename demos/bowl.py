@@ -35,7 +35,7 @@
 #
 # It writes into `demos/output/bowl/` (or `--out`): `bowl.png` (the angle of the disc's centre
 # against the pendulum's, and the energy over the kinetic energy's largest value) and the runs'
-# folders (`timeseries.csv`, `solution.xdmf` every 20 steps).
+# folders (`timeseries.csv`, `solution.xdmf` every 20 steps, `obstacles.xdmf`: the bowl for ParaView).
 
 import argparse
 import os

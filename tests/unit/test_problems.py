@@ -308,7 +308,7 @@ def test_load_file_missing_or_not_python(mpi_tmp_path, clean_registry):
 def test_rebuild_refuses_a_problem_built_by_hand():
     # a Problem made directly (no ProblemSpec) has no args: nothing to rebuild it from
     hand = Problem(name="hand", mesh=None, shape=(), a=None, l=None, u0=lambda x: 0.0, v0=None,
-                   constraint_vertices=None, lower_bound=None, constraint_measure=None)
+                   constraint_vertices=None, lower_bound=lambda x: 0.0, constraint_measure=None)
     described = hand.describe()
     assert "args" not in described and "source" not in described
     with pytest.raises(ProblemInputError) as e:
