@@ -17,6 +17,12 @@ vibration period (0.81 ms: omega R / c_s = 2.51, c_s = sqrt(mu/rho), the five-fo
 spheroidal mode, measured on level 1 with P2/P2). The ball starts 0.01 mm above the plane
 (0.1 ms of flight); dt = 4e-5 s puts ~100 steps in the contact, T = 5 ms sees the rebound.
 
+--R2 (mm) replaces the plane by a rigid sphere of that radius, ``Ball((0, 0, -R2), R2)`` (an
+obstacle: gap rows along the sphere's normal, sdm_dolfinx/method/obstacle_rows.py), whose top touches
+the plane z = 0 under A: Hertz's two-sphere contact with the second one rigid, the formulas below with
+R replaced by R* = 1 / (1/R + 1/R2) (the curvatures add; the mass stays the ball's). Unset, the plane
+is the old bound z + u_z >= 0, every run as before.
+
 Hertz's closed forms (:func:`hertz`). A sphere of radius R pressed by a force F onto a rigid
 plane (the second body infinitely stiff: 1/E* = (1 - nu^2)/E + 0) approaches it by delta, with
 the contact disc of radius a = sqrt(R delta), the pressure p(r) = p0 sqrt(1 - r^2/a^2) and
