@@ -142,3 +142,19 @@ def test_the_rigid_sphere_is_an_obstacle_and_the_plane_stays_the_bound():
         ball.problem(COMM, level=1, R2=20.0, with_contact=False)
     with pytest.raises(SdmError, match="R2"):
         ball.problem(COMM, level=1, R2=-1.0)
+
+
+def test_render_of_an_obstacle_run_draws_the_body_and_says_the_obstacle_is_not_drawn(mpi_tmp_path):
+    """The pictures read a bound, not signed distances: a run with obstacles is drawn without them and
+    says so in one warning (it crashed with "'NoneType' object is not callable")."""
+    import warnings
+    from sdm_dolfinx import cli
+    out = mpi_tmp_path / "indent"
+    simulate(SPEC.problem(COMM, **{**VALUES, "h": 0.5}), dt=1e-3, T=5e-3, out=out, write_every=5)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert cli.main(["render", str(out), "--png", str(mpi_tmp_path / "indent.png")]) == 0
+    if COMM.rank == 0:
+        assert [w for w in caught if "declares obstacles" in str(w.message)], [str(w.message) for w in caught]
+        assert (mpi_tmp_path / "indent.png").stat().st_size > 10_000
+    COMM.Barrier()
