@@ -12,6 +12,11 @@ class SdmError(Exception):
     """An error this package reports in one line (its message says what and why)."""
 
 
+class ProblemInputError(SdmError, ValueError):
+    """Parameter values a problem (or an obstacle it declares) refuses (the message may join several,
+    with '; '). Here, not in problems/, because the obstacles below the problems refuse with it too."""
+
+
 class StepError(SdmError, RuntimeError):
     """A time step failed; the message names the step, the time and the cause."""
 

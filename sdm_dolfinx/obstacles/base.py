@@ -21,7 +21,7 @@ from typing import Any, Callable, Optional, Sequence
 import numpy as np
 import numpy.typing as npt
 
-from sdm_dolfinx.problems.errors import ProblemInputError
+from sdm_dolfinx.errors import ProblemInputError
 
 #: the arrays of this package (points (3, n), normals, cells, ...)
 Array = npt.NDArray[Any]

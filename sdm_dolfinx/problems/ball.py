@@ -17,6 +17,12 @@ vibration period (0.81 ms: omega R / c_s = 2.51, c_s = sqrt(mu/rho), the five-fo
 spheroidal mode, measured on level 1 with P2/P2). The ball starts 0.01 mm above the plane
 (0.1 ms of flight); dt = 4e-5 s puts ~100 steps in the contact, T = 5 ms sees the rebound.
 
+--R2 (mm) replaces the plane by a rigid sphere of that radius, ``Ball((0, 0, -R2), R2)`` (an
+obstacle: gap rows along the sphere's normal, sdm_dolfinx/method/obstacle_rows.py), whose top touches
+the plane z = 0 under A: Hertz's two-sphere contact with the second one rigid, the formulas below with
+R replaced by R* = 1 / (1/R + 1/R2) (the curvatures add; the mass stays the ball's). Unset, the plane
+is the old bound z + u_z >= 0, every run as before.
+
 Hertz's closed forms (:func:`hertz`). A sphere of radius R pressed by a force F onto a rigid
 plane (the second body infinitely stiff: 1/E* = (1 - nu^2)/E + 0) approaches it by delta, with
 the contact disc of radius a = sqrt(R delta), the pressure p(r) = p0 sqrt(1 - r^2/a^2) and
@@ -57,6 +63,7 @@ from sdm_dolfinx import compat
 from sdm_dolfinx.problems import base as _problem
 from sdm_dolfinx.problems import ball_mesh
 from sdm_dolfinx.problems.base import Param, Problem, ProblemSpec
+from sdm_dolfinx.obstacles import Ball
 
 #: the unit of every parameter and time-series column (for run.json; --help states them too)
 UNITS = {"level": "-", "h": "mm (gmsh mesh size far from the contact)",
@@ -79,12 +86,19 @@ UNITS = {"level": "-", "h": "mm (gmsh mesh size far from the contact)",
                              "mid-edge nodes included; < 0: below the plane)"}
 
 
-def hertz(radius=20.0, E=10.0, nu=0.3, rho=1e-9, v=100.0, mass=None):
-    """Hertz's quasi-static impact of an elastic sphere on a rigid plane (derived in the module doc).
+def effective_radius(radius, R2=None):
+    """Hertz's R* = 1 / (1/R + 1/R2) (mm): R itself on the plane (R2 None)."""
+    return radius if R2 is None else 1.0 / (1.0 / radius + 1.0 / R2)
+
+
+def hertz(radius=20.0, E=10.0, nu=0.3, rho=1e-9, v=100.0, mass=None, R2=None):
+    """Hertz's quasi-static impact of an elastic sphere on a rigid plane, or on a rigid sphere of radius
+    ``R2`` (derived in the module doc: R becomes R* = 1 / (1/R + 1/R2) in F(delta), the mass stays the ball's).
 
     Args:
         radius: R (mm). E: Young's modulus (N/mm^2). nu: Poisson's ratio. rho: density (t/mm^3).
         v: impact speed (mm/s, > 0). mass: the mass (t) instead of rho 4/3 pi R^3 (e.g. the mesh's).
+        R2: the rigid sphere's radius (mm), None for the plane.
 
     Returns:
         dict with ``E_star`` (N/mm^2), ``mass`` (t), ``delta_max`` (mm), ``F_max`` (N), ``t_c`` (s),
@@ -92,11 +106,12 @@ def hertz(radius=20.0, E=10.0, nu=0.3, rho=1e-9, v=100.0, mass=None):
     """
     E_star = E / (1.0 - nu ** 2)
     m = rho * 4.0 / 3.0 * math.pi * radius ** 3 if mass is None else mass
-    k = 4.0 / 3.0 * E_star * math.sqrt(radius)                     # F = k delta^(3/2)
-    delta_max = (15.0 * m * v ** 2 / (16.0 * E_star * math.sqrt(radius))) ** 0.4
+    r_star = effective_radius(radius, R2)
+    k = 4.0 / 3.0 * E_star * math.sqrt(r_star)                     # F = k delta^(3/2)
+    delta_max = (15.0 * m * v ** 2 / (16.0 * E_star * math.sqrt(r_star))) ** 0.4
     F_max = k * delta_max ** 1.5
     beta = math.gamma(0.4) * math.gamma(0.5) / math.gamma(0.9)     # B(2/5, 1/2)
-    a = math.sqrt(radius * delta_max)
+    a = math.sqrt(r_star * delta_max)
     return {"E_star": E_star, "mass": m, "delta_max": delta_max, "F_max": F_max,
             "t_c": 0.8 * beta * delta_max / v, "a": a, "p0": 3.0 * F_max / (2.0 * math.pi * a ** 2)}
 
@@ -153,10 +168,11 @@ def mesh_sizes(level, h, h_contact, radius, a):
     return hf, min(hf, hc) if h_contact is None else h_contact
 
 
-def _build(comm, level, h, h_contact, radius, height, E, nu, rho, v, gravity, with_contact, vt=0.0, vt_angle=0.0):
+def _build(comm, level, h, h_contact, radius, height, E, nu, rho, v, gravity, with_contact, vt=0.0, vt_angle=0.0,
+           R2=None):
     """The ball Problem for declared values (see :data:`SPEC`)."""
     cz = radius + height
-    ref = hertz(radius, E, nu, rho, impact_speed(v, gravity, height))
+    ref = hertz(radius, E, nu, rho, impact_speed(v, gravity, height), R2=R2)
     hf, hc = mesh_sizes(level, h, h_contact, radius, ref["a"])
     msh, ft = ball_mesh.make_mesh(hf, hc, ref["a"], radius, (0.0, 0.0, cz), comm=comm)
     tol = 1e-8 * radius
@@ -173,6 +189,15 @@ def _build(comm, level, h, h_contact, radius, height, E, nu, rho, v, gravity, wi
     # a Constant, not a literal: with gravity 0 UFL would simplify the load to an empty form
     g = fem.Constant(msh, np.array((0.0, 0.0, -gravity), dtype=PETSc.ScalarType))
     probe = lowest_boundary_vertex(msh, tol)
+    units = dict(UNITS)
+    if R2 is None:                               # the plane z = 0: z + u_z >= 0
+        contact = {"lower_bound": lambda x: -x[2]}
+    else:                                        # the rigid sphere under A, its top at the origin
+        contact = {"lower_bound": None, "obstacles": [Ball((0.0, 0.0, -R2), R2)]}
+        units.update(R2="mm (radius of the rigid sphere centred at (0, 0, -R2): its top touches the plane z = 0)",
+                     contact_force="N (sum of the nodal multipliers, each along the sphere's normal at its node)",
+                     gap_min_boundary="mm (min of the signed distance to the sphere over every displacement dof "
+                                      "of the lower hemisphere, P2 mid-edge nodes included; < 0: inside it)")
     return _problem.Problem(
         name="ball", mesh=msh, shape=(3,), rho=rho,
         a=lambda u, w: ufl.inner(sigma(u, lmbda, mu), ufl.sym(ufl.grad(w))) * ufl.dx,
@@ -180,19 +205,18 @@ def _build(comm, level, h, h_contact, radius, height, E, nu, rho, v, gravity, wi
         u0=lambda x: np.zeros((3, x.shape[1])),
         v0=lambda x: np.vstack([np.full(x.shape[1], vx), np.full(x.shape[1], vy), np.full(x.shape[1], -v)]),
         constraint_vertices=contact_vertices,
-        lower_bound=lambda x: -x[2],                 # the plane z = 0: z + u_z >= 0
         constraint_component=2,
         constraint_measure=lambda q: q * ds_c,       # lumped area: pressure = lambda_i / |Gamma_i|
         probe=probe,
         extra_columns=("contact_force", "momentum_y", "elastic"),
-        momentum_component=2,
+        momentum_component=2, **contact,
         parameters={"level": level if h is None and h_contact is None else None, "h": hf, "h_contact": hc,
                     "radius": radius, "height": height, "centre": [0.0, 0.0, cz], "E": E, "nu": nu, "rho": rho,
-                    "v": v, "vt": vt, "vt_angle": vt_angle, "gravity": gravity, "with_contact": with_contact,
+                    "v": v, "vt": vt, "vt_angle": vt_angle, "gravity": gravity, "with_contact": with_contact, "R2": R2,
                     "lame_lambda": lmbda, "lame_mu": mu, "contact_nodes": "vertices", "geometry_degree": 2,
                     "mass": rho * 4.0 / 3.0 * math.pi * radius ** 3, "hertz": ref,
                     "probe": "lowest boundary vertex ({:.10g}, {:.10g}, {:.10g})".format(*probe)},
-        units=dict(UNITS))
+        units=units)
 
 
 def total_mass(problem):
@@ -223,13 +247,18 @@ PARAMS = (
     Param("gravity", 0.0, "gravitational acceleration along -e_z (0: off; 9810 for the Earth's)", unit="mm/s^2",
           low=0.0),
     Param("with_contact", True, "remove the plane (free flight)", flag="no-contact"),
+    Param("R2", None, "radius of a rigid sphere under the ball in place of the plane z = 0 (centred at "
+          "(0, 0, -R2): its top touches the plane; Hertz with 1/R* = 1/R + 1/R2; unset: the plane)", unit="mm",
+          type=float, low=0.0, low_strict=True),
 )
 
 
 def _check(values, label):
     errors = []
     ref = hertz(values["radius"], values["E"], values["nu"], values["rho"],
-                impact_speed(values["v"], values["gravity"], values["height"]))
+                impact_speed(values["v"], values["gravity"], values["height"]), R2=values.get("R2"))
+    if values.get("R2") is not None and not values["with_contact"]:
+        errors.append(f"{label('R2')} (a rigid sphere to hit) means nothing with {label('with_contact')} off")
     hf, hc = mesh_sizes(values["level"], values["h"], values["h_contact"], values["radius"], ref["a"])
     if not ball_mesh.MIN_H_RATIO * values["radius"] <= hc <= hf <= values["radius"]:
         errors.append(f"mesh sizes must satisfy radius / {1 / ball_mesh.MIN_H_RATIO:g} <= {label('h_contact')} <= "
@@ -240,7 +269,7 @@ def _check(values, label):
 def _estimate(values):
     """The mesh a ball run makes, counted without gmsh (ball_mesh.estimate_mesh), for launch's memory check."""
     ref = hertz(values["radius"], values["E"], values["nu"], values["rho"],
-                impact_speed(values["v"], values["gravity"], values["height"]))
+                impact_speed(values["v"], values["gravity"], values["height"]), R2=values.get("R2"))
     hf, hc = mesh_sizes(values["level"], values["h"], values["h_contact"], values["radius"], ref["a"])
     by = tuple(n for n in ("h", "h_contact") if values.get(n) is not None) or ("level",)
     return {**ball_mesh.estimate_mesh(hf, hc, ref["a"], values["radius"]), "value_size": 3, "by": by}
@@ -253,7 +282,8 @@ SPEC = ProblemSpec(
 
 def problem(comm: MPI.Comm = MPI.COMM_WORLD, **values: Any) -> Problem:
     """The falling ball; ``values`` are :data:`PARAMS` (``level``, ``h``, ``h_contact``, ``radius``,
-    ``height``, ``E``, ``nu``, ``rho``, ``v``, ``vt``, ``vt_angle``, ``gravity``, ``with_contact``), the others at
+    ``height``, ``E``, ``nu``, ``rho``, ``v``, ``vt``, ``vt_angle``, ``gravity``, ``with_contact``, ``R2``), the
+    others at
     their defaults."""
     return SPEC.problem(comm, **values)
 
@@ -262,4 +292,4 @@ def hertz_of(problem, mesh_mass=False):
     """:func:`hertz` for a built ball Problem at its impact speed (``mesh_mass``: with the mesh's mass)."""
     p = problem.parameters
     return hertz(p["radius"], p["E"], p["nu"], p["rho"], impact_speed(p["v"], p["gravity"], p["height"]),
-                 mass=total_mass(problem) if mesh_mass else None)
+                 mass=total_mass(problem) if mesh_mass else None, R2=p.get("R2"))

@@ -1,6 +1,5 @@
-"""The problems' one-line error (its own module: the Problem and its Dirichlet parts both raise it)."""
-from sdm_dolfinx.errors import SdmError
+"""The problems' one-line error (its own module: the Problem and its Dirichlet parts both raise it);
+defined in :mod:`sdm_dolfinx.errors`, the layer the obstacles (which a problem declares) share."""
+from sdm_dolfinx.errors import ProblemInputError as ProblemInputError
 
-
-class ProblemInputError(SdmError, ValueError):
-    """Parameter values a problem refuses (the message may join several, with '; ')."""
+__all__ = ["ProblemInputError"]

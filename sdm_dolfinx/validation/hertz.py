@@ -180,7 +180,7 @@ def run_one(level, dt, pair="P2/P1", linear="auto", comm=MPI.COMM_WORLD, out=Non
     row = {"level": level, "dt": dt, "pair": pair, "h": prm["h"], "h_contact": prm["h_contact"],
            "a_over_h": ref["a"] / prm["h_contact"], "dim_W": int(r.discretisation.W.dofmap.index_map.size_global
                                                             * r.discretisation.W.dofmap.index_map_bs),
-           "mass_error": mass / ref["mass"] - 1.0, "ranks": comm.size, "hertz": ref,
+           "mass_error": mass / ref["mass"] - 1.0, "ranks": comm.size, "hertz": ref, "R2": prm.get("R2"),
            **metrics(ts, dt, mass, prm["height"], prm["v"], ref),
            "history": {k: np.asarray(ts[c]).tolist() for k, c in (("t", "t"), ("F", "contact_force"),
                                                                    ("energy", "energy"))},
@@ -220,7 +220,9 @@ def plot_force(rows, path):
     ax.set_xlim(0.0, 1e3 * T_FACTOR * ref["t_c"])
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    ax.set_title("ball on a rigid plane: contact force against Hertz")
+    R2 = rows[0].get("R2")
+    ax.set_title("ball on a rigid " + ("plane" if R2 is None else f"sphere (R2 = {R2:g} mm)")
+                 + ": contact force against Hertz")
     fig.tight_layout()
     return save(fig, path)
 
@@ -256,13 +258,15 @@ def plot_pressure(rows, path):
     return save(fig, path)
 
 
-def study(runs=DEFAULT_RUNS, out="report/hertz", pair="P2/P1", linear="auto", comm=MPI.COMM_WORLD, say=print):
+def study(runs=DEFAULT_RUNS, out="report/hertz", pair="P2/P1", linear="auto", comm=MPI.COMM_WORLD, say=print,
+          R2=None):
     """Run ``runs`` ((level, dt) pairs); write hertz.json, hertz.md and the two PNGs to ``out`` (rank 0).
+    ``R2``: the ball falls on a rigid sphere of that radius instead of the plane (Hertz with R*).
 
     Returns the rows (every rank)."""
     rows = []
     for level, dt in runs:
-        row = run_one(level, dt, pair=pair, linear=linear, comm=comm)
+        row = run_one(level, dt, pair=pair, linear=linear, comm=comm, **({} if R2 is None else {"R2": R2}))
         rows.append(row)
         if comm.rank == 0 and say:
             say(f"level {level} dt {dt:g}: t_c {100 * row['err_t_c']:+.2f} %, F_max {100 * row['err_F_max']:+.2f} %, "
@@ -294,6 +298,9 @@ def main(argv=None):
     ap.add_argument("--pair", default="P2/P1")
     ap.add_argument("--linear", default="auto", help="the step solver's linear strategy (see run --help)")
     ap.add_argument("--out", default="report/hertz")
+    ap.add_argument("--R2", type=float, default=None, metavar="MM",
+                    help="drop the ball on a rigid sphere of this radius (mm) instead of the plane (Hertz with "
+                         "1/R* = 1/R + 1/R2)")
     ap.add_argument("--replot", nargs="+", default=None, metavar="JSON",
                     help="redraw from these hertz.json files (their rows joined) instead of running")
     args = ap.parse_args(argv)
@@ -303,7 +310,7 @@ def main(argv=None):
         if MPI.COMM_WORLD.rank == 0:
             write_outputs(rows, args.out)
     else:
-        rows = study(args.runs, args.out, args.pair, args.linear)
+        rows = study(args.runs, args.out, args.pair, args.linear, R2=args.R2)
     if MPI.COMM_WORLD.rank == 0:
         print(table(rows), end="")
     return 0

@@ -34,6 +34,8 @@ DEMOS = {
     "ball.py": ["ball_hertz.png", "ball_pressure.png"],
     "custom_problem.py": ["bar_contact.png", "bar_wave.png"],
     "punch.py": ["punch_hertz.png", "punch_force.png"],
+    "indent.py": ["indent_hertz.png", "indent_force.png"],
+    "bowl.py": ["bowl.png"],
 }
 #: the files of demos/ that are not demos, and who runs them
 NOT_DEMOS = {
@@ -42,8 +44,10 @@ NOT_DEMOS = {
     "pushed_block_problem.py": "a problem file: tests/physics/test_prescribed_motion.py runs it",
     "incline_problem.py": "a problem file (u0 = 'equilibrium'): tests/physics/test_equilibrium_start.py runs it",
     "punch_problem.py": "a problem file: punch.py runs it",
+    "indent_problem.py": "a problem file: indent.py and tests/physics/test_obstacle_hertz.py run it",
+    "bowl_problem.py": "a problem file: bowl.py and tests/physics/test_obstacle_contact.py run it",
 }
-#: measured on the 2-core machine with CI=1: membrane 10 s, disc 12 s, ball 5-13 s, friction 7 s, bar 6 s, punch 9 s
+#: measured on the 2-core machine with CI=1: membrane 10 s, disc 12 s, ball 5-13 s, friction 7 s, bar 6 s, punch 9 s, indent 5 s
 SLOW = {"membrane.py", "disc.py", "ball.py"}
 MAGIC = {".png": b"\x89PNG\r\n\x1a\n", ".gif": b"GIF8"}
 
