@@ -166,7 +166,7 @@ class ObstacleRows:
         if not len(self.dofs):
             return np.zeros((0, self.gdim)), np.zeros(0)
         phi, nrm, _ = nearest(self.obstacles, self._y, t0, weight if self.moves else None, t1)
-        coef = np.ascontiguousarray(nrm[:self.gdim].T) * self.free
+        coef: Array = np.ascontiguousarray(nrm[:self.gdim].T) * self.free.astype(float)
         g = np.einsum("ik,ik->i", coef, u[self.dofs]) - phi
         g[~np.any(coef != 0.0, axis=1)] = -np.inf          # every component fixed: nothing to hold
         return coef, g

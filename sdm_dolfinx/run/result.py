@@ -161,7 +161,7 @@ class TimeSeries:
         contact = (CONTACT_ENERGY,) if contact_energy else ()
         dirichlet = dirichlet_columns(problem)
         self.reaction_columns = dirichlet[:-1]
-        obstacle = OBSTACLE_COLUMNS if moving_bound.moves(d) else ()
+        obstacle: tuple[str, ...] = OBSTACLE_COLUMNS if moving_bound.moves(d) else ()
         if d.obstacle_rows is not None and d.obstacle_rows.moves:      # moving obstacles: their work only
             obstacle = OBSTACLE_COLUMNS[:1]
         self.columns: tuple[str, ...] = (BASE_COLUMNS + contact + tuple(problem.extra_columns) + friction_cols

@@ -26,7 +26,7 @@ obstacle, fewer with weighted rows).
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any, Optional
+from typing import Any, Optional, Union
 
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -300,14 +300,14 @@ class GapNewton:
         with scoped_options(self.prefix, self.options, inherit=True) as scope:
             self.rtol, self.max_it, self.monitor = vi_tolerances(scope, rtol, max_it)
             self.fac = Factorisation(K, symmetric_positive, self.prefix + "factor_", aug=factor_matrix)
-        self.rows: _Rows = (NodeRows(K, self.fac, dofs, max_columns) if G is None
-                            else MatrixRows(K, self.fac, G, max_columns))
+        self.rows: Union[NodeRows, MatrixRows] = (NodeRows(K, self.fac, dofs, max_columns) if G is None
+                                                  else MatrixRows(K, self.fac, G, max_columns))
         m = len(self.rows.g)
         self.num_constraints = self.comm.allreduce(m, op=MPI.SUM)
         self.lam, self.active = np.zeros(m), np.zeros(m, dtype=bool)
         # the Alart–Curnier scale r: the mean of K's diagonal at the dofs the rows read
         diag = K.getDiagonal()
-        if G is None:
+        if isinstance(self.rows, NodeRows):
             read = self.rows.dofs.reshape(-1)
         else:
             read = np.unique(self.rows._aj) - K.getOwnershipRange()[0]
