@@ -1,0 +1,111 @@
+"""The gap-row Newton (solvers/gap_newton.py) on hand-made problems: the KKT conditions of
+
+    min 1/2 x^T K x - b^T x   subject to   G x >= g
+
+hold at its solution: G x >= g, lam >= 0, lam . (G x - g) = 0 and K x - b = G^T lam, to the
+solver's tolerance (asserted 1e-8 of the data's scale, the complementarity test's rtol being 1e-10
+of max|b|), with at least one row active and one inactive (so both branches are exercised). K is
+a random SPD matrix (a 1-D Laplacian plus a random diagonal, distributed over the ranks), G either
+node rows (two dofs of a "node" with a unit normal each, the obstacle case) or a distributed
+matrix whose rows read several dofs, some on another rank (the weighted case). The node rows'
+normals change between two solves with the same solver (its cached columns serve both).
+"""
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import numpy as np
+import pytest
+
+from sdm_dolfinx.solvers.gap_newton import GapNewton
+
+COMM = MPI.COMM_WORLD
+N = 40                                      # global size (20 "nodes" of 2 dofs)
+
+
+def _K():
+    K = PETSc.Mat().createAIJ([N, N], nnz=3, comm=COMM)
+    r0, r1 = K.getOwnershipRange()
+    rng = np.random.default_rng(1)
+    diag = 2.0 + rng.random(N)
+    for i in range(r0, r1):
+        K.setValue(i, i, diag[i] + 2.0)
+        if i > 0:
+            K.setValue(i, i - 1, -1.0)
+        if i < N - 1:
+            K.setValue(i, i + 1, -1.0)
+    K.assemble()
+    return K
+
+
+def _b(K, seed):
+    b = K.createVecLeft()
+    r0, r1 = K.getOwnershipRange()
+    b.array[:] = np.random.default_rng(seed).standard_normal(N)[r0:r1] - 1.0
+    return b
+
+
+def _check(K, b, x, Gx, g, lam, GTlam):
+    r = K.createVecLeft()
+    K.mult(x, r)
+    r.axpy(-1.0, b)
+    scale = max(COMM.allreduce(float(np.max(np.abs(b.array), initial=0.0)), op=MPI.MAX), 1.0)
+    tol = 1e-8 * scale
+    assert COMM.allreduce(float(np.max(np.abs(r.array - GTlam), initial=0.0)), op=MPI.MAX) <= tol
+    assert COMM.allreduce(float(np.min(Gx - g, initial=np.inf)), op=MPI.MIN) >= -tol
+    assert COMM.allreduce(float(np.min(lam, initial=np.inf)), op=MPI.MIN) >= -tol
+    assert COMM.allreduce(float(np.max(np.abs(lam * (Gx - g)), initial=0.0)), op=MPI.MAX) <= tol * scale
+    n_active = COMM.allreduce(int(np.count_nonzero(lam > tol)), op=MPI.SUM)
+    n_rows = COMM.allreduce(len(lam), op=MPI.SUM)
+    assert 0 < n_active < n_rows
+
+
+def test_node_rows_with_turning_normals_satisfy_the_kkt_conditions():
+    K = _K()
+    r0, r1 = K.getOwnershipRange()
+    first = r0 + (r0 % 2)                   # whole "nodes" (pairs of dofs) owned here
+    dofs = np.array([[i - r0, i + 1 - r0] for i in range(first, r1 - 1, 2)], dtype=np.int32).reshape(-1, 2)
+    solver = GapNewton(K, dofs)
+    for angle in (0.3, 1.1):                # the same solver, the normals turned between the solves
+        theta = angle + 0.1 * np.arange(len(dofs))
+        coef = np.column_stack([np.cos(theta), np.sin(theta)])
+        g = np.where(np.arange(len(dofs)) % 3 == 0, -3.0, 0.3)      # some rows far from binding
+        solver.set_rows(coef, g)
+        b = _b(K, 2)
+        x = K.createVecRight()
+        solver.solve(b, x)
+        Gx = solver.row_values(x.array_r)
+        GTlam = np.zeros(r1 - r0)
+        np.add.at(GTlam, dofs.reshape(-1), (coef * solver.lam[:, None]).reshape(-1))
+        _check(K, b, x, Gx, g, solver.lam, GTlam)
+    solver.destroy()
+
+
+def test_matrix_rows_reading_other_ranks_dofs_satisfy_the_kkt_conditions():
+    K = _K()
+    r0, r1 = K.getOwnershipRange()
+    m_loc = (r1 - r0) // 2
+    rows0 = COMM.exscan(m_loc) or 0
+    M = COMM.allreduce(m_loc, op=MPI.SUM)
+    G = PETSc.Mat().createAIJ([(m_loc, M), (r1 - r0, N)], nnz=3, comm=COMM)
+    for k in range(m_loc):                   # row i averages dofs 2i, 2i + 1, 2i + 2 (the last of another rank)
+        i = rows0 + k
+        for j, w in ((2 * i, 0.25), (2 * i + 1, 0.5), ((2 * i + 2) % N, 0.25)):
+            G.setValue(i, j, w)
+    G.assemble()
+    solver = GapNewton(K, G=G)
+    g = np.where(np.arange(m_loc) % 3 == 0, -3.0, 0.15)
+    solver.set_rows(None, g)
+    b = _b(K, 3)
+    x = K.createVecRight()
+    solver.solve(b, x)
+    Gx = solver.row_values(x.array_r)
+    lam_vec, GTlam = G.createVecLeft(), G.createVecRight()
+    lam_vec.array[:] = solver.lam
+    G.multTranspose(lam_vec, GTlam)
+    _check(K, b, x, Gx, g, solver.lam, GTlam.array_r)
+    solver.destroy()
+
+
+def test_node_rows_or_a_matrix_one_of_them():
+    with pytest.raises(ValueError, match="one of them"):
+        GapNewton(_K())
