@@ -171,7 +171,7 @@ def _slope():
 
 
 @pytest.mark.parametrize("given,words", [
-    (dict(friction="coulomb", mu=0.3), "friction on gap rows"),
+    (dict(friction="coulomb", friction_options={"mu": 0.3}), "friction on gap rows"),
     (dict(contact="penalty"), "contact 'penalty'"),
     (dict(scheme="newmark"), "scheme 'newmark'"),
     (dict(vi_solver="vinewtonrsls"), "linear strategy schur"),

@@ -66,7 +66,7 @@ def test_weighted_rows_do_not_mend_an_ill_posed_pair(pair):
 @pytest.mark.parametrize("make,given,words", [
     (lambda: rod1d.problem(COMM), {}, "in 1-D"),
     (lambda: membrane.problem(COMM, N=6), {}, "no contact facet"),
-    (lambda: block.problem(COMM, nx=4, ny=2, start="rest"), dict(friction="coulomb", mu=0.3), "friction"),
+    (lambda: block.problem(COMM, nx=4, ny=2, start="rest"), dict(friction="coulomb", friction_options={"mu": 0.3}), "friction"),
     (lambda: block.problem(COMM, nx=4, ny=2, start="rest"), dict(contact="penalty"), "contact 'penalty'"),
     (lambda: block.problem(COMM, nx=4, ny=2), {}, "equilibrium"),
 ])
