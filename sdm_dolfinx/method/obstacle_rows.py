@@ -127,7 +127,8 @@ class ObstacleRows:
         if flat:
             raise DiscretisationError(f"{label(p)}: obstacle {getattr(flat[0], 'kind', type(flat[0]).__name__)!r} "
                                       f"is not a plane-section obstacle (its normals leave the x-y plane): a 2-D "
-                                      f"problem takes half-spaces, balls (discs), wedges and 2-D surface meshes")
+                                      f"problem takes half-spaces with n_z = 0, balls (discs) centred on z = 0, "
+                                      f"cylinders along z, wedges with n1_z = n2_z = 0 and surface meshes of lines")
         self._y: Optional[Array] = None
         self._t: tuple[float, float] = (0.0, 0.0)
 

@@ -90,7 +90,13 @@ class Obstacle:
 
     def __init__(self, motion: Optional[Callable[[float], Any]] = None,
                  motion_velocity: Optional[Callable[[float], Any]] = None,
-                 rotation: Optional[Sequence[Any]] = None) -> None:
+                 rotation: Optional[Sequence[Any]] = None, **unknown: Any) -> None:
+        if unknown:     # a misspelt parameter: one line naming what the shape takes (not Python's TypeError)
+            import inspect
+            own = [n for n in inspect.signature(type(self).__init__).parameters if n not in ("self", "motion")]
+            takes = [n for n in own if n not in ("unknown",)] + ["motion", "motion_velocity", "rotation"]
+            raise ObstacleError(f"{self.kind}: unknown parameter(s) {', '.join(map(repr, unknown))}; takes "
+                                f"{', '.join(dict.fromkeys(takes))}")
         for name, f in (("motion", motion), ("motion_velocity", motion_velocity)):
             if f is not None and not callable(f):
                 raise ObstacleError(f"{self.kind}: {name} must be None or a callable t -> (3,), got {f!r}")

@@ -280,6 +280,9 @@ class TimeSeries:
         if getattr(self.discretisation, "weighted_rows", None) is not None:
             return ("the weighted gap holds the face on average between its vertices: constrain='nodes' "
                     "(--constrain nodes) holds every node of it")
+        if getattr(self.discretisation, "obstacle_rows", None) is not None:
+            return ("the obstacles hold the constrained vertices only: constrain='nodes' (--constrain nodes) holds "
+                    "every node of the face")
         return ("the constraint holds at vertices only (eq. (13)): constrain='weighted' (--constrain weighted) holds "
                 "the face between them, constrain='nodes' (--constrain nodes) at every node")
 

@@ -620,3 +620,10 @@ def test_signs_on_a_concave_surface_agree_with_the_winding_number(tmp_path):
     for x in (RNG.uniform(-1.5, 1.5, (2000, 3)), on + 1e-3 * o.normals[t], on - 1e-3 * o.normals[t]):
         inside = winding_number(x, o.points, o.cells) > 0.5
         assert np.array_equal(o.distance(x.T)[0] < 0, inside)
+
+
+@pytest.mark.parametrize("cls,args", [(ob.Ball, ((0.0, 0.0), 1.0)), (ob.HalfSpace, ((0.0, 0.0), (0.0, 1.0)))])
+def test_a_misspelt_parameter_is_refused_in_one_line_naming_the_right_ones(cls, args):
+    with pytest.raises(ObstacleError, match=r"unknown parameter\(s\) 'insde'; takes .*motion") as e:
+        cls(*args, insde=True)
+    assert "\n" not in str(e.value) and "__init__" not in str(e.value)
