@@ -58,7 +58,8 @@ BOWL = sys.modules[load_file(PROBLEM_FILE).build.__module__]
 VALUES = {"r": 10.0, "Rb": 40.0, "E": 1000.0, "nu": 0.3, "rho": 1e-6, "gravity": 9810.0, "theta0": 11.5, "h": 1.0}
 RUNS = (("P1+/P0", "vertices"), ("P2/P1", "nodes"))
 #: the checks: the measured period within PERIOD_RTOL of T(theta0); the energy within ENERGY_RTOL of its
-#: start, relative to the largest kinetic energy
+#: start, relative to the largest kinetic energy, at dt = T0/2000 (it grows O(dt): see below; the bound
+#: scales with dt)
 PERIOD_RTOL, ENERGY_RTOL = 0.01, 0.05
 
 
@@ -146,7 +147,9 @@ if __name__ == "__main__":
     # obstacle: a node sliding by d along the bowl ends the step O(|d|²/R) inside it (the bowl's
     # circle lies outside its tangent), the next step pushes it back out, and the force does the
     # work λ · O(|d|²/R) > 0 each step: O(dt) per unit time, which vanishes as dt → 0 (measured with
-    # tests' settings: 2.9 % at dt = T0/2000, 1.2 % at T0/4000, for E = 1000 N/mm², r = 10 mm).
+    # tests' settings: 2.9 % at dt = T0/2000, 1.2 % at T0/4000, for E = 1000 N/mm², r = 10 mm; with
+    # the CI variable's T0/1000, 6.6 % on dolfinx 0.9): the check's bound is 5 % at T0/2000, scaled
+    # with dt.
     for res in results:
         where = f"{res['pair']}, constrain {res['constrain']}"
         tc = res["crossings"]
@@ -154,9 +157,10 @@ if __name__ == "__main__":
         period = tc[1] - tc[0]
         E, K = np.asarray(res["ts"]["energy"]), np.max(res["ts"]["kinetic"])
         drift = np.max(np.abs(E - E[0])) / K
+        bound = ENERGY_RTOL * dt * 2000 / T0
         say(f"{where}: period {period:.5f} s, T(theta0) {Tex:.5f} s ({period / Tex - 1:+.2%}; small-angle T0 "
             f"{T0:.5f} s), energy within {drift:.1%} of the largest kinetic energy")
         assert abs(period / Tex - 1) <= PERIOD_RTOL, f"{where}: the period is off T(theta0) by {period / Tex - 1:+.2%}"
-        assert drift <= ENERGY_RTOL, f"{where}: the energy moved by {drift:.1%} of the largest kinetic energy"
-    say(f"checked: the period within {PERIOD_RTOL:.0%} of the pendulum's, the energy within {ENERGY_RTOL:.0%} of the "
-        f"largest kinetic energy")
+        assert drift <= bound, f"{where}: the energy moved by {drift:.1%} of the largest kinetic energy"
+    say(f"checked: the period within {PERIOD_RTOL:.0%} of the pendulum's, the energy within "
+        f"{ENERGY_RTOL * dt * 2000 / T0:.0%} of the largest kinetic energy (O(dt))")

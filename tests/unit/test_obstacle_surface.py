@@ -123,7 +123,7 @@ def test_a_surface_mesh_is_its_triangles_moved(tmp_path):
     path = tmp_path / "tet.msh"
     with open(path, "w") as f:
         f.write("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n4\n")
-        f.writelines(f"{i + 1} {x!r} {y!r} {z!r}\n" for i, (x, y, z) in enumerate(p))
+        f.writelines(f"{i + 1} {float(x)!r} {float(y)!r} {float(z)!r}\n" for i, (x, y, z) in enumerate(p))
         f.write("$EndNodes\n$Elements\n4\n")
         f.writelines(f"{i + 1} 2 2 0 1 {a + 1} {b + 1} {c + 1}\n" for i, (a, b, c) in
                      enumerate([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]))
