@@ -97,7 +97,7 @@ class ObstacleRows:
 
     def __init__(self, d: Any) -> None:
         p = d.problem
-        self.d, self.obstacles = d, tuple(p.obstacles)
+        self.obstacles = tuple(p.obstacles)
         self.comm = d.comm
         self.gdim = int(p.shape[0])
         bs = d.W.dofmap.index_map_bs
@@ -172,10 +172,6 @@ class ObstacleRows:
         g[~np.any(coef != 0.0, axis=1)] = -np.inf          # every component fixed: nothing to hold
         return coef, g
 
-    def imposed_gap(self, solver: Any, x: Array) -> float:
-        """min over this rank's rows of G X - g for the step ``solver``'s rows (local)."""
-        return float(np.min(solver.row_values(x) - solver.g, initial=np.inf))
-
     def after_step(self, info: dict, u: Array, t1: float, lam: Array) -> None:
         """``info["gap_end"]``, the true signed distance of U^{n+1} = ``u`` at t_{n+1}, and with moving
         obstacles ``info["obstacle_work"]`` (:meth:`work`; collective)."""
@@ -195,7 +191,3 @@ class ObstacleRows:
             phi1 = nearest(self.obstacles, self._y, t1)[0]
             local = float(np.dot(lam, phi0 - phi1))
         return self.comm.allreduce(local, op=MPI.SUM)
-
-    def describe(self) -> list[dict]:
-        """The obstacles as ``run.json`` holds them."""
-        return [ob.describe() if hasattr(ob, "describe") else {"kind": type(ob).__name__} for ob in self.obstacles]

@@ -109,11 +109,5 @@ class WeightedRows:
         keep.array[fixed] = 0.0
         G.diagonalScale(R=keep)
         self.G, self.g = G, gvec.array_r.copy()
-        self.measure = w
-        self.num_rows = comm.allreduce(len(w), op=MPI.SUM)
         for v in (inv, bound, gvec, keep):
             v.destroy()
-
-    def imposed_gap(self, solver, x):
-        """min over this rank's rows of G X - g (G X is collective: every rank calls it)."""
-        return float(np.min(solver.row_values(x) - solver.g, initial=np.inf))

@@ -274,8 +274,8 @@ class Integrator:
             raise StepError(f"step {n + 1} (t = {t + self.dt:.6g}): {e}{_friction_bound.step_hint(self)}") from None
         comm = d.comm
         # a contact treatment imposes nothing (penetration is its model): +inf
-        gap_rows = rows or d.weighted_rows
-        imposed = (gap_rows.imposed_gap(self.solver, X.array_r) if gap_rows is not None     # the rows' G X - g
+        gap_rows = rows is not None or d.weighted_rows is not None
+        imposed = (self.solver.imposed_gap(X.array_r) if gap_rows        # the gap rows' own G X - g
                    else ts.imposed_gap(self, X) if self.treatment is None else float("inf"))
         info["gap_imposed"] = comm.allreduce(imposed, op=MPI.MIN)
         self.moving.after_solve(self.lam, info)     # the bound at t_{n+1}, the step's obstacle_work

@@ -339,6 +339,10 @@ class GapNewton:
         """G x at this rank's rows for the owned array ``x`` (collective for matrix rows)."""
         return self.rows.values(x)
 
+    def imposed_gap(self, x: Array) -> float:
+        """min over this rank's rows of G x - g (collective for matrix rows: every rank calls it)."""
+        return float(np.min(self.row_values(x) - self.g, initial=np.inf))
+
     def solve(self, b: PETSc.Vec, x: PETSc.Vec) -> dict[str, Any]:
         """Solve the step VI for the right-hand side b into x (see the module); returns
         ``{"its", "n_active"}``. Raises VIError (no convergence, a contact zone too large)."""
