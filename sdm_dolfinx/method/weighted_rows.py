@@ -19,7 +19,8 @@ that differs from the vertex one); in 1-D the boundary is a point and the rows a
 constraint's (refused: it would change nothing).
 
 Dirichlet dofs on the face (constant data): their columns leave G and their known values the right-
-hand side g. Not yet: obstacles, a moving bound (refused in one line).
+hand side g (a Dirichlet part there prescribes the constrained component at the face's vertices too,
+which :mod:`.dirichlet` refuses). Not yet: obstacles, a moving bound (refused in one line).
 """
 from mpi4py import MPI
 from petsc4py import PETSc
@@ -92,14 +93,6 @@ class WeightedRows:
         bs = d.W.dofmap.index_map_bs
         bound.array[c::bs] = problem_data.bound(p, x, comm) if x.shape[1] else np.zeros(0)
         fixed = np.asarray(d.ddofs, dtype=np.int64)
-        parts = np.concatenate([np.asarray(k, dtype=np.int64) for k in d.part_dofs]) if d.part_dofs else np.zeros(0)
-        ai, aj, _ = G.getValuesCSR()                # global columns: a row may read another rank's dofs
-        parts = np.concatenate(comm.allgather(w0 + parts.astype(np.int64)))
-        n = comm.allreduce(int(np.count_nonzero(np.isin(np.asarray(aj, dtype=np.int64), parts))), op=MPI.SUM)
-        if n:
-            raise DiscretisationError(f"{name}: constrain='weighted': a Dirichlet part prescribes dofs the weighted "
-                                      f"rows read ({n} entries; their data would enter at the wrong time): leave the "
-                                      f"contact facets out of the parts, or use constrain='vertices'")
         if fixed.size:      # Dirichlet dofs: G_i u = G_free u + G_D u_D >= G_i g
             bound.array[fixed] -= d.g.x.array[fixed]
         gvec = G.createVecLeft()

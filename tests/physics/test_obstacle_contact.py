@@ -211,3 +211,24 @@ def test_inspect_measures_the_rows_of_an_inclined_plane_as_those_of_the_flat_one
     flat = inspect(_block_on_slope(25.0, False, n=6)[0], pair)["beta"]
     tilted = inspect(_block_on_slope(25.0, True, n=6)[0], pair)["beta"]
     assert flat > 0.1 and abs(tilted - flat) <= 1e-9 * flat
+
+
+def test_a_dirichlet_part_at_the_nodes_an_obstacle_holds_is_refused():
+    """A part prescribing u_x (not the component u_probe records) at the bottom nodes the inclined plane
+    holds: their rows would take its moving data at the wrong time; refused in one line."""
+    from dolfinx import mesh as dmesh
+    from sdm_dolfinx.problems import DirichletPart
+    p = _slope()
+    th = np.radians(10.0)
+    on = lambda x: np.isclose(-np.sin(th) * x[0] + np.cos(th) * x[1], 0.0, atol=1e-9)     # noqa: E731
+    p.dirichlet_parts = [DirichletPart("bottom", lambda m: dmesh.locate_entities_boundary(m, 1, on),
+                                       value=lambda x, t: 1e-3 * t, components=(0,))]
+    with pytest.raises(SdmError, match="Dirichlet part prescribes .* the obstacles constrain"):
+        simulate(p, pair="P1+/P0", dt=1e-4, T=1e-3)
+
+
+def test_a_2d_problem_refuses_an_obstacle_whose_normals_leave_the_plane():
+    p = _slope()
+    p.obstacles = [HalfSpace((0.0, 0.0, 0.0), (0.0, 1.0, 1.0))]
+    with pytest.raises(SdmError, match="not a plane-section obstacle .* n_z = 0"):
+        simulate(p, pair="P1+/P0", dt=1e-4, T=1e-3)
