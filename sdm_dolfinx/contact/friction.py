@@ -123,10 +123,14 @@ def make(friction=None, mu=None, threshold=None):
 
 def tangential_axes(problem: Any) -> tuple[int, ...]:
     """The components of u tangential to the obstacle (all but the constrained one): ``(0,)`` for a
-    2-D problem bounded in y, ``(0, 1)`` for a 3-D one bounded in z; () for a scalar problem."""
+    2-D problem bounded in y, ``(0, 1)`` for a 3-D one bounded in z; () for a scalar problem. A 3-D
+    problem with ``obstacles`` (whose tangent plane turns from node to node): ``(0, 1, 2)``, the
+    tangential vectors' Cartesian components."""
     shape = tuple(problem.shape)
     if not shape:
         return ()
+    if shape[0] == 3 and getattr(problem, "obstacles", None):
+        return (0, 1, 2)
     return tuple(c for c in range(shape[0]) if c != (problem.constraint_component or 0))
 
 
@@ -158,18 +162,24 @@ def step_info(integ, info, u, un):
     into ``info`` (3-D: the force's size and its components ``tangential_force_t``; ``integ.slip``
     per vertex its size); ``integ`` is the run's Integrator."""
     comm = integ.discretisation.comm
-    integ.slip_t = u[integ.tdofs] - un[integ.tdofs]
+    integ.slip_t = integ.solver.tangential(u) - integ.solver.tangential(un)
     lam_t = integ.solver.lam_t
     if lam_t.ndim == 1:
         integ.slip = integ.slip_t
         force, work = comm.allreduce(np.array([np.sum(lam_t), np.dot(lam_t, integ.slip)]), op=MPI.SUM)
         info.update(tangential_force=float(force), friction_work=float(work))
         return
-    # 3-D: the force's two tangential components; slip (per vertex) is |(U^{n+1} - U^n)_t|
+    # 3-D: the force's tangential components (obstacles: Cartesian, the frames turn from node to node);
+    # slip (per vertex) is |(U^{n+1} - U^n)_t|
+    work = np.sum(lam_t * integ.slip_t)
+    integ.slip_t = integ.solver.cartesian(integ.slip_t)
     integ.slip = np.linalg.norm(integ.slip_t, axis=1)
-    total = comm.allreduce(np.r_[lam_t.sum(axis=0), np.sum(lam_t * integ.slip_t)], op=MPI.SUM)
-    info.update(tangential_force=float(np.hypot(total[0], total[1])), tangential_force_t=total[:2].tolist(),
-                friction_work=float(total[2]))
+    force = integ.solver.cartesian(lam_t)
+    k = force.shape[1]
+    total = comm.allreduce(np.r_[force.sum(axis=0), work], op=MPI.SUM)
+    size = np.hypot(total[0], total[1]) if k == 2 else np.linalg.norm(total[:k])
+    info.update(tangential_force=float(size), tangential_force_t=total[:k].tolist(),
+                friction_work=float(total[k]))
 
 
 def make_solver(integ, options):
@@ -180,9 +190,14 @@ def make_solver(integ, options):
         integ.tdofs, thresholds = contact_dofs(d, f)
     except ValueError as e:
         raise DiscretisationError(str(e)) from None
+    ndofs, lb, rows = d.cdofs, d.lb, d.obstacle_rows
+    if rows is not None:            # obstacles: each node's Cartesian dofs, its frame given every step
+        ndofs, lb = rows.dofs[:, 0], np.zeros(len(rows.dofs))
+        integ.tdofs = rows.dofs[:, 1] if rows.gdim == 2 else np.ascontiguousarray(rows.dofs[:, 1:])
     cls = FrictionalNewtonCone if integ.tdofs.ndim == 2 else FrictionalNewton
-    solver = cls(integ.K, d.cdofs, integ.tdofs, d.lb, law=f.law, mu=f.mu, threshold=thresholds,
-                 symmetric_positive=not integ.block, options=options, factor_matrix=integ.factor_matrix)
+    solver = cls(integ.K, ndofs, integ.tdofs, lb, law=f.law, mu=f.mu, threshold=thresholds,
+                 symmetric_positive=not integ.block, options=options, factor_matrix=integ.factor_matrix,
+                 frames=rows is not None)
     integ.slip = np.zeros(len(integ.tdofs))
-    integ.slip_t = np.zeros(integ.tdofs.shape)
+    integ.slip_t = np.zeros((len(integ.tdofs), 3) if rows is not None and rows.gdim == 3 else integ.tdofs.shape)
     return solver

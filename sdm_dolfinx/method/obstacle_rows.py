@@ -77,8 +77,8 @@ def refusal(integ: Any, scheme: Any, vi_solver: str, linear: str) -> Optional[st
         return f"{what}, which scheme {scheme.name!r} does not take: use the midpoint or backward-euler scheme"
     if integ.contact != "exact":
         return f"{what}, which contact {integ.contact!r} does not take yet: use contact 'exact'"
-    if integ.friction is not None:
-        return f"{what}: friction on gap rows is not built yet (frictionless only)"
+    if integ.friction is not None and d.obstacle_rows is None:
+        return f"{what}: friction on the weighted gap is not built yet (frictionless only)"
     if vi_solver != "ssn" or linear not in ("auto", "schur"):
         return (f"{what}: their gap rows are solved by the semi-smooth Newton with linear strategy schur only "
                 f"(got vi_solver {vi_solver!r}, linear {linear!r})")

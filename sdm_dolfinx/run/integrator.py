@@ -142,7 +142,7 @@ class Integrator:
             scale = a if a is not None and a * a == c_M else np.sqrt(c_M)
             self.factor_matrix = sparse_factor_matrix(self.K, d.A, d.B, d.c_lumped, scale, d.ddofs)
         self.slip = None
-        if d.obstacle_rows is not None or d.weighted_rows is not None:     # gap rows: G x >= g
+        if (d.obstacle_rows is not None and self.friction is None) or d.weighted_rows is not None:  # G x >= g
             what = "obstacles" if d.obstacle_rows is not None else "constrain weighted"
             self.linear_strategy, self.linear_reason = "schur", f"{what}: gap rows (dense Schur complement)"
             self.solver = GapNewton(self.K, None if d.obstacle_rows is None else d.obstacle_rows.dofs,
@@ -269,7 +269,7 @@ class Integrator:
             if self.friction is None:
                 info = self.solver.solve(b, X)
             else:
-                info = self.solver.solve(b, X, U.array[self.tdofs].copy())
+                info = self.solver.solve(b, X, self.solver.tangential(U.array_r))
         except VIError as e:
             raise StepError(f"step {n + 1} (t = {t + self.dt:.6g}): {e}{_friction_bound.step_hint(self)}") from None
         comm = d.comm
@@ -304,10 +304,11 @@ class Integrator:
     @property
     def lam_t_components(self):
         """Tangential multipliers of the last step at the owned constrained vertices, signed: m in
-        2-D, m x 2 in 3-D (the tangential axes in increasing order; friction, else 0)."""
+        2-D, m x 2 in 3-D (the tangential axes in increasing order; obstacles: m x 3, Cartesian;
+        friction, else 0)."""
         if self.friction is None:
             return np.zeros(len(self.discretisation.cdofs))
-        return np.asarray(self.solver.lam_t)
+        return np.asarray(self.solver.cartesian(self.solver.lam_t))
 
     @property
     def slipping(self):

@@ -76,6 +76,26 @@ COULOMB_METHODS = ("auto", "newton", "fixed-point")
 AUTO_NEWTON_MAX_IT = 30
 
 
+def frames_of(normals):
+    """(m, k, k) orthonormal frames whose first rows are the unit ``normals`` (m x k): in 2-D the
+    tangent (n_y, -n_x) (e_x for n = e_y, as the axis-aligned bound's tangential dof); in 3-D t1 the axis of least |n_c| (the lowest such c) made orthogonal to n,
+    t2 = n x t1 (a function of n alone: a restart rebuilds the same frames). Friction is isotropic:
+    the solution does not depend on the tangents' choice, only the Newton iterations' start does."""
+    n = np.asarray(normals, dtype=float)
+    m, k = n.shape
+    Q = np.zeros((m, k, k))
+    Q[:, 0] = n
+    if k == 2:
+        Q[:, 1, 0], Q[:, 1, 1] = n[:, 1], -n[:, 0]
+        return Q
+    axis = np.zeros((m, 3))
+    axis[np.arange(m), np.argmin(np.abs(n), axis=1)] = 1.0
+    t1 = axis - np.einsum("ij,ij->i", axis, n)[:, None] * n
+    t1 /= np.linalg.norm(t1, axis=1)[:, None]
+    Q[:, 1], Q[:, 2] = t1, np.cross(n, t1)
+    return Q
+
+
 def _coefficients(law, mu, threshold, m):
     """(mu, s) per vertex for the law, checked (ValueError with a one-line reason)."""
     if law not in LAWS:
@@ -112,6 +132,11 @@ class FrictionalNewton:
         max_it: Newton iterations per step (and Tresca solves of the fixed point); 500 as
             for the frictionless solver (Murty's rule took 188 on a block pulled off the
             plane under Tresca friction).
+        frames: the obstacle's normal turns from node to node and step to step (a curved or
+            tilted obstacle): ``ndofs`` and ``tdofs`` are then each node's Cartesian dofs
+            (components 0, then 1 (and 2)), and :meth:`set_rows` gives the normals and bounds
+            before every step; the normal and tangential "dofs" are the components in the node's
+            frame (:meth:`~sdm_dolfinx.solvers.friction_system.FrictionSystem.set_frames`).
 
     After :meth:`solve`: ``lam`` (normal reactions), ``lam_t`` (tangential ones),
     ``active``, ``stick``, ``slip`` (bool per vertex; a vertex without friction is neither
@@ -120,8 +145,9 @@ class FrictionalNewton:
 
     def __init__(self, K, ndofs, tdofs, lb, law="tresca", mu=None, threshold=None, coulomb="auto",
                  c_t=0.0, symmetric_positive=True, prefix=None, options=None,
-                 factor_matrix=None, rtol=1e-10, max_it=500):
+                 factor_matrix=None, rtol=1e-10, max_it=500, frames=False):
         self.K, self.comm = K, K.getComm().tompi4py()
+        self.frames = bool(frames)
         self.ndofs = np.asarray(ndofs, dtype=np.int32)
         self.tdofs = np.asarray(tdofs, dtype=np.int32)
         self.lb = np.asarray(lb, dtype=float)
@@ -142,10 +168,46 @@ class FrictionalNewton:
         self.system = FrictionSystem(K, np.concatenate([self.ndofs, self.tdofs.T.reshape(-1)]), self.fac)
         diag = K.getDiagonal()
         self.c_n, self.k_t = (self._mean(diag.array_r[dofs]) for dofs in (self.ndofs, self.tdofs))
+        if self.frames:                 # the frame's axes mix the components: one scale for all
+            self.c_n = self.k_t = self._mean(diag.array_r[self.system.cdofs])
         diag.destroy()
         self.lam, self.lam_t = np.zeros(m), np.zeros(self.tdofs.shape)
         self.active, self.stick, self.slip = (np.zeros(m, dtype=bool) for _ in range(3))
         self._sets = None               # (active, stick, sigma) to start the next solve from
+
+    def set_rows(self, normals, lb):
+        """Frames (see the class): the unit normals (m x k, Cartesian) and the lower bounds of
+        n_i . x_i of the next step; the tangents are :func:`tangents` of the normals."""
+        n = np.asarray(normals, dtype=float).reshape(self.m, -1)
+        self.system.set_frames(frames_of(n))
+        self.lb = np.asarray(lb, dtype=float).reshape(self.m)
+
+    def _components(self, u):
+        """The values of the node's frame components of the owned array u at this rank's contact
+        nodes: (normal (m,), tangential (m,) or (m, 2))."""
+        if not self.frames:
+            return u[self.ndofs], u[self.tdofs]
+        y = self.system.rotate(np.asarray(u)[self.system.cdofs])
+        m = self.m
+        return y[:m], (y[m:] if self.tdofs.ndim == 1 else y[m:].reshape(2, m).T)
+
+    def tangential(self, u):
+        """The tangential components (the order of ``tdofs``) of the owned array ``u`` at this rank's
+        contact nodes: the reference ``xref_t`` of :meth:`solve` and the slip's ends (a copy)."""
+        return np.array(self._components(u)[1], dtype=float)
+
+    def cartesian(self, tangential):
+        """3-D frames: the tangential vectors (m x 2, along each node's t1, t2) as Cartesian ones (m x 3);
+        without frames, or in 2-D, ``tangential`` itself."""
+        Q = self.system.Q
+        tangential = np.asarray(tangential, dtype=float)
+        if not self.frames or Q is None or tangential.ndim == 1:
+            return tangential
+        return np.einsum("ik,ikc->ic", tangential, Q[:, 1:, :])
+
+    def imposed_gap(self, x):
+        """min over this rank's contact nodes of x_n - lb (in the frame; +inf without nodes)."""
+        return float(np.min(self._components(x)[0] - self.lb, initial=np.inf))
 
     def _mean(self, values):
         total = self.comm.allreduce(float(np.sum(values)), op=MPI.SUM)
@@ -219,16 +281,29 @@ class FrictionalNewton:
         tol = self.rtol * max(b.norm(PETSc.NormType.NORM_INFINITY), 1e-300)
         self.system.start(b)
         if self._sets is None:          # the first step: contact where x penetrates, stick where friction
-            active = x.array_r[self.ndofs] < self.lb
+            active = self._components(x.array_r)[0] < self.lb
             stick = active if self.s is None else self.s > 0.0
             self._sets = (active, stick, self._initial_sigma())
         info = self._step(xref, tol)
         self.system.finish(b, x)
-        x.array[self.ndofs[self.active]] = self.lb[self.active]
-        x.array[self.tdofs[self.stick]] = xref[self.stick]
+        self._impose(x.array, xref)
         counts = (np.count_nonzero(v) for v in (self.active, self.stick, self.slip))
         n = self.comm.allreduce(np.array(list(counts)), op=MPI.SUM)
         return {**info, "n_active": int(n[0]), "n_stick": int(n[1]), "n_slip": int(n[2])}
+
+    def _impose(self, xa, xref):
+        """The converged conditions exactly (not to round-off) in the owned array xa: x_n = lb on the
+        active set, x_t = xref on the stick set (frames: in the node's frame, rotated back)."""
+        if not self.frames:
+            xa[self.ndofs[self.active]] = self.lb[self.active]
+            xa[self.tdofs[self.stick]] = xref[self.stick]
+            return
+        m, cd = self.m, self.system.cdofs
+        y = self.system.rotate(xa[cd].copy())
+        y[:m][self.active] = self.lb[self.active]
+        t = y[m:].reshape(-1, m)                    # a view: tangential component k - 1 of node i
+        t[:, self.stick] = np.reshape(xref, (m, -1)).T[:, self.stick]
+        xa[cd] = self.system.unrotate(y)
 
     def _initial_sigma(self):
         """The slip directions before the first step (2-D: +1 per vertex)."""

@@ -24,6 +24,15 @@ with a large friction coefficient, where the discrete problem may lose uniquenes
 In parallel every rank owns whole vertices (both dofs of a vertex on one rank, as dolfinx's
 blocked dofmaps do), keeps its rows of the cached columns, and the dense system is gathered
 on every rank (the pattern of :class:`~sdm_dolfinx.solvers.schur.SchurComplement`).
+
+**Frames** (:meth:`FrictionSystem.set_frames`: friction against a curved or tilted obstacle). The
+contact dofs are then a node's gdim Cartesian dofs (component-major, as above) and the unknowns
+their components y_i = Q_i x_i in an orthonormal frame per node (row 0 the obstacle's normal, then
+the tangents), given anew every step: the normal "dof" of a node is n_i . x_i. Everything above
+holds in the frame: a condition's column is K^-1 Q_i^T e_k = sum_c Q_ikc K^-1 e_(i,c), a
+combination of the node's cached Cartesian columns, so a frame that turns costs no new solve; its
+rows are rotated the same way, and the reactions go back as Q_i^T r_i. Without frames (None) the
+contact dofs are the unknowns themselves and nothing is rotated (the axis-aligned obstacle).
 """
 from mpi4py import MPI
 
@@ -85,6 +94,10 @@ class ColumnCache:
         for k, g in enumerate(missing):
             self.slot[g] = n0 + k
 
+    def has(self, gids):
+        """Every one of ``gids`` is cached."""
+        return all(g in self.slot for g in gids.tolist())
+
     def slots(self, gids):
         return np.fromiter((self.slot[g] for g in gids.tolist()), dtype=np.int64, count=len(gids))
 
@@ -105,6 +118,52 @@ class FrictionSystem:
         self.cols = ColumnCache(fac, self.cdofs, K.getLocalSize()[0])
         self._x0, self._rhs = K.createVecRight(), K.createVecLeft()
         self.starts = 0
+        #: (m, k, k) the nodes' frames (see the module), or None: the contact dofs themselves
+        self.Q = None
+
+    def set_frames(self, Q):
+        """The frames of the next systems: Q[i] orthonormal (k x k, row 0 the normal) for node i, whose
+        Cartesian dofs are ``cdofs[c * m + i]`` (c = 0..k-1); None: no rotation."""
+        self.Q = None if Q is None else np.asarray(Q, dtype=float)
+
+    def rotate(self, v):
+        """The contact vector v (Cartesian, component-major) in the frames: (Q_i v_i)_k at k * m + i."""
+        if self.Q is None:
+            return v
+        m, k = self.Q.shape[:2]
+        return np.einsum("ikc,ci...->ki...", self.Q, v.reshape(k, m, *v.shape[1:])).reshape(v.shape)
+
+    def unrotate(self, y):
+        """The inverse of :meth:`rotate` (Q_i^T y_i)."""
+        if self.Q is None:
+            return y
+        m, k = self.Q.shape[:2]
+        return np.einsum("ikc,ki...->ci...", self.Q, y.reshape(k, m, *y.shape[1:])).reshape(y.shape)
+
+    def _columns(self, *masks):
+        """For each mask of this rank's unknowns: (the global ids of the masked unknowns of every rank,
+        this rank's offset among them, their columns K^-1 e_j at this rank's contact rows (a copy)).
+        The columns not cached yet are solved in one batch (collective)."""
+        parts = [self._gather(self.gc[mask]) for mask in masks]
+        if self.Q is None:
+            self.cols.ensure(np.concatenate([g for g, _ in parts]))
+            return [(g, off, self.cols.Zc[:, self.cols.slots(g)]) for g, off in parts]
+        m, k = self.Q.shape[:2]
+        nodes = self.gc.reshape(k, m).T                  # (m, k) the Cartesian ids of each node
+        combos = []
+        for mask in masks:
+            j = np.flatnonzero(mask)
+            ids, _ = self._gather(nodes[j % m])
+            coef, _ = self._gather(self.Q[j % m, j // m, :])
+            combos.append((ids.reshape(-1, k), coef.reshape(-1, k)))
+        self.cols.ensure(np.concatenate([ids.reshape(-1) for ids, _ in combos]))
+        out = []
+        for (g, off), (ids, coef) in zip(parts, combos):
+            Z = np.zeros((len(self.cdofs), len(g)))
+            for c in range(k):
+                Z += self.cols.Zc[:, self.cols.slots(ids[:, c])] * coef[:, c]
+            out.append((g, off, self.rotate(Z)))
+        return out
 
     @property
     def its(self):
@@ -115,7 +174,7 @@ class FrictionSystem:
         """x0 = K^-1 b, once per step; the iterations reuse it."""
         self.fac.solve(b, self._x0)
         self.starts += 1
-        self._x0c = self._x0.array_r[self.cdofs].copy()
+        self._x0c = self.rotate(self._x0.array_r[self.cdofs].copy())
 
     def _gather(self, local):
         parts = self.comm.allgather(local)
@@ -133,17 +192,12 @@ class FrictionSystem:
             VIError: the dense system is singular.
         """
         forced = ~fixed & ((a != 0.0) | (c != 0.0))
-        gF, offF = self._gather(self.gc[fixed])
+        (gF, offF, W), (gJ, _, ZJ) = self._columns(fixed, forced)
         pos = np.full(len(self.cdofs), -1, dtype=np.int64)     # global position among the fixed
         pos[fixed] = offF + np.arange(np.count_nonzero(fixed))
-        gJ, _ = self._gather(self.gc[forced])
         aJ, _ = self._gather(a[forced])
         cJ, _ = self._gather(c[forced])
         pJ, _ = self._gather(np.where(c[forced] != 0.0, pos[partner[forced]], -1))
-        self.cols.ensure(np.concatenate([gF, gJ]))
-        sF, sJ = self.cols.slots(gF), self.cols.slots(gJ)
-        ZJ = self.cols.Zc[:, sJ]
-        W = self.cols.Zc[:, sF]                      # a copy (fancy indexing)
         cpl = pJ >= 0                                # Coulomb: W = Z_F + Z_J D
         W[:, pJ[cpl]] += ZJ[:, cpl] * cJ[cpl]
         xc_known = self._x0c + ZJ @ aJ
@@ -176,11 +230,9 @@ class FrictionSystem:
         """
         m = len(active)
         on = np.concatenate([active, stick | slip, stick | slip])
-        gS, off = self._gather(self.gc[on])
+        [(gS, off, Z)] = self._columns(on)                       # local contact rows x unknowns
         pos = np.full(3 * m, -1, dtype=np.int64)
         pos[on] = off + np.arange(np.count_nonzero(on))
-        self.cols.ensure(gS)
-        Z = self.cols.Zc[:, self.cols.slots(gS)]                 # local contact rows x unknowns
         x0 = self._x0c
         ia, it, isl = np.flatnonzero(active), np.flatnonzero(stick), np.flatnonzero(slip)
         rows, rhs = [Z[ia], Z[m + it], Z[2 * m + it]], [lb[ia] - x0[ia], xref[it, 0] - x0[m + it],
@@ -217,18 +269,19 @@ class FrictionSystem:
     def finish(self, b, x):
         """The full x of the last :meth:`system`: x0 + sum_j r_j K^-1 e_j over the (at most
         :data:`FINISH_MAX_AXPY`) cached columns with a reaction, one contiguous axpy each,
-        else one more solve K x = b + E r."""
-        nz = np.flatnonzero(self._last)
+        else one more solve K x = b + E r (frames: the reactions Q_i^T r_i of the Cartesian dofs)."""
+        last = self.unrotate(self._last)
+        nz = np.flatnonzero(last)
         gids, _ = self._gather(self.gc[nz])
-        if self.cols.Zt is None or len(gids) > FINISH_MAX_AXPY:
+        if self.cols.Zt is None or len(gids) > FINISH_MAX_AXPY or not self.cols.has(gids):
             b.copy(self._rhs)
-            self._rhs.array[self.cdofs] += self._last
+            self._rhs.array[self.cdofs] += last
             self.fac.solve(self._rhs, x)
             self.starts += 1
             return
         xa = x.array
         xa[:] = self._x0.array_r
-        for j, rj in zip(self.cols.slots(gids), self._gather(self._last[nz])[0]):
+        for j, rj in zip(self.cols.slots(gids), self._gather(last[nz])[0]):
             xa += rj * self.cols.Zt[j]
 
     def destroy(self):
