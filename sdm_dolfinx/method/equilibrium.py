@@ -23,6 +23,16 @@ are unchanged (to the relative tolerance :data:`RTOL`). Started there, the run's
 d = X_t - U_t is 0 with |lam_T| <= bound: the body stays at rest (a sticking block on an incline
 whose contact edge slips).
 
+**Against obstacles** (``Problem.obstacles``) each constrained node i is held by its row
+n_i . U_i >= -phi(a_i) linearised at the reference configuration (n_i the nearest obstacle's normal at
+the node a_i, phi its signed distance there, at t = 0): the problem is solved in each node's frame,
+U_i = Q_i^T Y_i with Q_i orthonormal and its row ``constraint_component`` the normal (the others the
+tangents of :func:`~sdm_dolfinx.solvers.friction_frames.frames_of`), so that the row is the bound
+Y_c >= -phi(a_i) of one unknown and everything above applies to A_Y = T^T A T, L_Y = T^T L (T the
+rotation, the identity off the constrained nodes; friction: the tangential unknowns of the frame).
+The run's first step linearises its rows at U_s instead: they differ by O(|U_s,t|^2 / R) on an
+obstacle of curvature radius R (0 on a plane: there the run stays at U_s to round-off).
+
 A rigid motion that A does not resist (the translations and rotations for a vector u, the
 constant for a scalar u, where ``A r = 0``) and that neither the active contact, the sticking
 dofs nor the Dirichlet data fix is a free motion of the body: the static problem then has a
@@ -41,6 +51,7 @@ from dolfinx import fem
 
 from sdm_dolfinx import compat
 from sdm_dolfinx.method.errors import DiscretisationError
+from sdm_dolfinx.method.static_frame import ObstacleFrame
 from sdm_dolfinx.problems.base import EQUILIBRIUM as EQUILIBRIUM  # noqa: F401  (the value of u0 asking for it)
 from sdm_dolfinx.problems.base import label
 #: the most active-set changes of the loop
@@ -68,10 +79,10 @@ def initial_displacement(d, u0, friction=None, contact="exact"):
     if not isinstance(p.u0, str):          # validated: a string is EQUILIBRIUM
         u0.interpolate(getattr(p.u0, "for_constraint", lambda kind: p.u0)(d.constrain))
         return
-    if d.obstacle_rows is not None or getattr(d, "weighted_rows", None) is not None:
-        what = "against obstacles" if d.obstacle_rows is not None else "with constrain 'weighted'"
-        raise DiscretisationError(f"problem {p.name!r}: u0 = 'equilibrium' {what} is not built yet: start from a "
-                                  f"displacement or a Function (u0; a built-in problem: start = rest)")
+    if getattr(d, "weighted_rows", None) is not None:
+        raise DiscretisationError(f"problem {p.name!r}: u0 = 'equilibrium' with constrain 'weighted' is not built "
+                                  f"yet: start from a displacement or a Function (u0; a built-in problem: start = "
+                                  f"rest)")
     Us = static_displacement(d, friction, contact)
     u0.x.array[:len(Us.array_r)] = Us.array_r          # the owned entries: the same layout
     u0.x.scatter_forward()
@@ -123,15 +134,16 @@ def _kernel(d, modes):
     return out
 
 
-def _kernel_basis(d, nloc):
-    """(R: the rigid motions in A's kernel as unit columns, owned rows; their names)."""
+def _kernel_basis(d, nloc, frame=None):
+    """(R: the rigid motions in A's kernel as unit columns, owned rows (in the ``frame``: T^T R); their
+    names)."""
     modes = _kernel(d, _rigid_modes(d))
     R = np.column_stack([r.array for _, r in modes]) if modes else np.zeros((nloc, 0))
     for _, r in modes:
         r.destroy()
     if R.shape[1]:
         R = R / np.sqrt(d.comm.allreduce(np.sum(R * R, axis=0), op=MPI.SUM))
-    return R, [n for n, _ in modes]
+    return (R if frame is None else frame.to_frame_rows(R)), [n for n, _ in modes]
 
 
 def _free_motions(R, fixed, comm):
@@ -225,18 +237,18 @@ def static_displacement(d, friction=None, contact="exact"):
     if contact != "exact":
         raise StaticStartError(f"{who} is the exact Signorini equilibrium, and contact {contact!r} penetrates the "
                                f"obstacle at rest: start from a u0 of your own (or contact 'exact')")
+    frame = ObstacleFrame(d) if d.obstacle_rows is not None else None
     law = getattr(friction, "law", "none") if friction is not None else "none"
     L = _load_at_zero(d)
+    A, lb, mass_mult = (d.A, d.lb, d.mass_mult) if frame is None else frame.start(L)   # obstacles: framed
     nloc = d.A.getLocalSize()[0]
     load = max(comm.allreduce(float(np.max(np.abs(L.array), initial=0.0)), op=MPI.MAX), np.finfo(float).tiny)
     x = p.mesh.geometry.x
     size = max(comm.allreduce(float(np.ptp(x, axis=0).max()) if len(x) else 0.0, op=MPI.MAX), 1.0)
-    R, names = _kernel_basis(d, nloc)
+    R, names = _kernel_basis(d, nloc, frame)
     tdofs = _tangential(d) if law != "none" else np.zeros((len(d.cdofs), 0), dtype=np.int64)
-    gap0 = -d.lb                                         # U = 0: the reference configuration's gap
-    low = comm.allreduce(float(np.min(gap0, initial=np.inf)), op=MPI.MIN)
-    active = gap0 <= (max(low, 0.0) + RTOL * size)
-    gvals = d.g.x.array[d.ddofs]
+    low = comm.allreduce(float(np.min(-lb, initial=np.inf)), op=MPI.MIN)      # -lb: the gap at U = 0
+    active = -lb <= (max(low, 0.0) + RTOL * size)
     m, nt = tdofs.shape
     stick = np.ones(m, dtype=bool)                  # with friction: an active dof sticks, or slips along sdir
     sdir, bound, ulen = np.zeros((m, nt)), np.zeros(m), np.zeros(m)
@@ -245,7 +257,7 @@ def static_displacement(d, friction=None, contact="exact"):
         slip = active & ~stick
         stuck = tdofs[active & stick].reshape(-1)
         dofs = np.concatenate([d.ddofs, d.cdofs[active], stuck]).astype(np.int64)
-        values = np.concatenate([gvals, d.lb[active], np.zeros(len(stuck))])
+        values = np.concatenate([d.g.x.array[d.ddofs], lb[active], np.zeros(len(stuck))])
         b = L.copy()                                # the load, and the friction force -bound s where it slips
         if slip.any():
             b.array[tdofs[slip].reshape(-1)] -= (bound[slip, None] * sdir[slip]).reshape(-1)
@@ -255,8 +267,8 @@ def static_displacement(d, friction=None, contact="exact"):
         # 3-D: Newton on the slip direction, -bound u_t / |u_t| ~ -bound s - bound / |u_t| (I - s s^T) u_t
         blocks = [(tdofs[i], bound[i] / ulen[i] * (np.eye(nt) - np.outer(sdir[i], sdir[i])))
                   for i in np.flatnonzero(slip & (ulen > 0))] if nt > 1 else []
-        U, reason = _solve_fixed(d.A, b, np.r_[dofs, pins], np.r_[values, np.zeros(len(pins))], comm, blocks)
-        d.A.mult(U, r)
+        U, reason = _solve_fixed(A, b, np.r_[dofs, pins], np.r_[values, np.zeros(len(pins))], comm, blocks)
+        A.mult(U, r)
         r.axpy(-1.0, b)
         for idx, block in blocks:
             r.array[idx] += block @ U.array[idx]
@@ -268,11 +280,11 @@ def static_displacement(d, friction=None, contact="exact"):
                                    f"beyond the rigid motions; KSP reason {reason}, residual {resid:.2e} of the load "
                                    f"{load:.2e}): no unique static solution; start from a u0 of your own")
         if N.shape[1]:
-            _no_rigid_displacement(d, U, N)
-        d.A.mult(U, r)
+            _no_rigid_displacement(d, U, N, mass_mult)
+        A.mult(U, r)
         r.axpy(-1.0, L)                 # the obstacle's reactions: normal, and tangential (friction)
         b.destroy()
-        reaction, gap = r.array[d.cdofs], U.array[d.cdofs] - d.lb
+        reaction, gap = r.array[d.cdofs], U.array[d.cdofs] - lb
         release = active & (reaction < -RTOL * load)
         add = ~active & (gap < -RTOL * size)
         changes = int(release.sum() + add.sum())
@@ -287,6 +299,8 @@ def static_displacement(d, friction=None, contact="exact"):
     else:
         raise StaticStartError(f"{who}: the static contact problem found no active set in {MAX_ITER} changes")
     r.destroy(), L.destroy()
+    if frame is not None:
+        frame.finish(U)
     return U
 
 
@@ -313,14 +327,14 @@ def _free_or_refuse(d, R, names, fixed, b, law, active, who, load):
     return N, _pins(N, fixed, comm)
 
 
-def _no_rigid_displacement(d, U, N):
+def _no_rigid_displacement(d, U, N, mass_mult):
     """U -= N c with (M N)^T U = 0 after: no rigid displacement along the free motions N (the centre
-    of mass does not move along them)."""
+    of mass does not move along them); ``mass_mult(x, y)``: y = M x."""
     comm, MN = d.comm, []
     for j in range(N.shape[1]):
         nj, mj = U.duplicate(), U.duplicate()
         nj.array[:] = N[:, j]
-        d.mass_mult(nj, mj)
+        mass_mult(nj, mj)
         MN.append(mj.array.copy())
         nj.destroy(), mj.destroy()
     MN = np.column_stack(MN)

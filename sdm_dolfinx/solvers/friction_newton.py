@@ -65,6 +65,7 @@ import numpy as np
 
 from sdm_dolfinx.solvers.base import MurtyRule, VIError
 from sdm_dolfinx.solvers.factorisation import Factorisation
+from sdm_dolfinx.solvers.friction_frames import NodeFrames
 from sdm_dolfinx.solvers.friction_system import FrictionSystem
 from sdm_dolfinx.solvers.options import instance_prefix, scoped_options, vi_tolerances
 
@@ -74,26 +75,6 @@ COULOMB_METHODS = ("auto", "newton", "fixed-point")
 #: ``auto`` gives Newton this many iterations before the fixed point: it took at most 12 in
 #: the measurements when it converged, and more iterations never ended its cycles (mu >= 5)
 AUTO_NEWTON_MAX_IT = 30
-
-
-def frames_of(normals):
-    """(m, k, k) orthonormal frames whose first rows are the unit ``normals`` (m x k): in 2-D the
-    tangent (n_y, -n_x) (e_x for n = e_y, as the axis-aligned bound's tangential dof); in 3-D t1 the axis of least |n_c| (the lowest such c) made orthogonal to n,
-    t2 = n x t1 (a function of n alone: a restart rebuilds the same frames). Friction is isotropic:
-    the solution does not depend on the tangents' choice, only the Newton iterations' start does."""
-    n = np.asarray(normals, dtype=float)
-    m, k = n.shape
-    Q = np.zeros((m, k, k))
-    Q[:, 0] = n
-    if k == 2:
-        Q[:, 1, 0], Q[:, 1, 1] = n[:, 1], -n[:, 0]
-        return Q
-    axis = np.zeros((m, 3))
-    axis[np.arange(m), np.argmin(np.abs(n), axis=1)] = 1.0
-    t1 = axis - np.einsum("ij,ij->i", axis, n)[:, None] * n
-    t1 /= np.linalg.norm(t1, axis=1)[:, None]
-    Q[:, 1], Q[:, 2] = t1, np.cross(n, t1)
-    return Q
 
 
 def _coefficients(law, mu, threshold, m):
@@ -109,7 +90,7 @@ def _coefficients(law, mu, threshold, m):
     return (v, None) if law == "coulomb" else (None, v)
 
 
-class FrictionalNewton:
+class FrictionalNewton(NodeFrames):
     """Primal-dual active set (semi-smooth Newton) solver of the frictional step problem.
 
     Args:
@@ -174,40 +155,6 @@ class FrictionalNewton:
         self.lam, self.lam_t = np.zeros(m), np.zeros(self.tdofs.shape)
         self.active, self.stick, self.slip = (np.zeros(m, dtype=bool) for _ in range(3))
         self._sets = None               # (active, stick, sigma) to start the next solve from
-
-    def set_rows(self, normals, lb):
-        """Frames (see the class): the unit normals (m x k, Cartesian) and the lower bounds of
-        n_i . x_i of the next step; the tangents are :func:`tangents` of the normals."""
-        n = np.asarray(normals, dtype=float).reshape(self.m, -1)
-        self.system.set_frames(frames_of(n))
-        self.lb = np.asarray(lb, dtype=float).reshape(self.m)
-
-    def _components(self, u):
-        """The values of the node's frame components of the owned array u at this rank's contact
-        nodes: (normal (m,), tangential (m,) or (m, 2))."""
-        if not self.frames:
-            return u[self.ndofs], u[self.tdofs]
-        y = self.system.rotate(np.asarray(u)[self.system.cdofs])
-        m = self.m
-        return y[:m], (y[m:] if self.tdofs.ndim == 1 else y[m:].reshape(2, m).T)
-
-    def tangential(self, u):
-        """The tangential components (the order of ``tdofs``) of the owned array ``u`` at this rank's
-        contact nodes: the reference ``xref_t`` of :meth:`solve` and the slip's ends (a copy)."""
-        return np.array(self._components(u)[1], dtype=float)
-
-    def cartesian(self, tangential):
-        """3-D frames: the tangential vectors (m x 2, along each node's t1, t2) as Cartesian ones (m x 3);
-        without frames, or in 2-D, ``tangential`` itself."""
-        Q = self.system.Q
-        tangential = np.asarray(tangential, dtype=float)
-        if not self.frames or Q is None or tangential.ndim == 1:
-            return tangential
-        return np.einsum("ik,ikc->ic", tangential, Q[:, 1:, :])
-
-    def imposed_gap(self, x):
-        """min over this rank's contact nodes of x_n - lb (in the frame; +inf without nodes)."""
-        return float(np.min(self._components(x)[0] - self.lb, initial=np.inf))
 
     def _mean(self, values):
         total = self.comm.allreduce(float(np.sum(values)), op=MPI.SUM)
@@ -297,13 +244,8 @@ class FrictionalNewton:
         if not self.frames:
             xa[self.ndofs[self.active]] = self.lb[self.active]
             xa[self.tdofs[self.stick]] = xref[self.stick]
-            return
-        m, cd = self.m, self.system.cdofs
-        y = self.system.rotate(xa[cd].copy())
-        y[:m][self.active] = self.lb[self.active]
-        t = y[m:].reshape(-1, m)                    # a view: tangential component k - 1 of node i
-        t[:, self.stick] = np.reshape(xref, (m, -1)).T[:, self.stick]
-        xa[cd] = self.system.unrotate(y)
+        else:
+            self.system.impose(xa, self.active, self.lb, self.stick, xref)
 
     def _initial_sigma(self):
         """The slip directions before the first step (2-D: +1 per vertex)."""

@@ -140,6 +140,18 @@ class FrictionSystem:
         m, k = self.Q.shape[:2]
         return np.einsum("ikc,ki...->ci...", self.Q, y.reshape(k, m, *y.shape[1:])).reshape(y.shape)
 
+    def impose(self, xa, active, lb, stick, xref):
+        """Frames: in the owned array xa, the nodes' normal components Q_i[0] . x_i := lb on the active
+        set and their tangential ones := xref (m, or m x 2) on the stick set (rotated, set, rotated back)."""
+        m = len(active)
+        if m == 0:
+            return
+        y = self.rotate(xa[self.cdofs].copy())
+        y[:m][active] = lb[active]
+        t = y[m:].reshape(-1, m)                    # a view: tangential component k - 1 of node i
+        t[:, stick] = np.reshape(xref, (m, -1)).T[:, stick]
+        xa[self.cdofs] = self.unrotate(y)
+
     def _columns(self, *masks):
         """For each mask of this rank's unknowns: (the global ids of the masked unknowns of every rank,
         this rank's offset among them, their columns K^-1 e_j at this rank's contact rows (a copy)).

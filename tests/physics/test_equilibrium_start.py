@@ -16,7 +16,9 @@ the load's normal part at every step, up to the solves' round-off. Checked on
 * the membrane (a scalar problem with Dirichlet data): the static obstacle problem, at rest;
 * a clamped block under a time-dependent load (the equilibrium under L(0)); Tresca friction;
 * the refusals, one line each, where the static problem has no solution;
-* ``u0`` as a dolfinx Function (interpolated into W^h).
+* ``u0`` as a dolfinx Function (interpolated into W^h);
+* against obstacles (the static problem in each node's frame): an inclined plane against tilted
+  gravity, and a disc at the bottom of a circular bowl.
 1 and 2 ranks.
 """
 import dataclasses
@@ -26,6 +28,7 @@ from mpi4py import MPI
 
 import numpy as np
 import pytest
+import ufl
 from dolfinx import fem, mesh as dmesh
 
 from sdm_dolfinx import compat, simulate
@@ -235,3 +238,58 @@ def test_tresca_friction_holds_the_block_on_the_incline():
     ts = res.timeseries
     assert np.max(np.abs(np.abs(ts["tangential_force"][1:]) - m * G * np.sin(theta))) <= slack(dt, m, 1e-3)
     assert np.max(np.abs(ts["momentum_x"])) <= 1e-12 * m * G * T
+
+
+# ------------------------------------------------------------------------------------ against obstacles
+def _slope(theta, rotated):
+    from test_obstacle_contact import _block_on_slope
+    p, _ = _block_on_slope(theta, rotated)
+    return dataclasses.replace(p, u0="equilibrium")
+
+
+@pytest.mark.parametrize("pair", ["P1+/P0", "P2/P1"])
+def test_equilibrium_on_an_inclined_plane_is_the_one_under_tilted_gravity(pair):
+    """Against obstacles the static problem is solved in each node's frame (method/equilibrium.py):
+    the block of test_obstacle_contact.py on a 20-degree inclined plane (mesh rotated, vertical gravity,
+    a HalfSpace obstacle), Coulomb mu = 0.8 > tan 20 (it sticks), against the axis-aligned block under
+    gravity rotated by -20 degrees (the unit rows' static loop): the same static problem up to the
+    rotation, so the same energies, contact and friction forces at every step (1e-10 of their scale;
+    measured 3e-13), and both stay at rest (kinetic energy <= 1e-20 of |E|; measured 1e-28, where the
+    unstressed start rattles at 1e-1 of |E|). Without friction the static problem has no solution (the
+    load works along the slope) and is refused in one line, as for the unit rows."""
+    kw = dict(pair=pair, dt=2e-5, T=1e-3, friction="coulomb", friction_options={"mu": 0.8})
+    flat, tilted = (simulate(_slope(20.0, rotated), **kw).timeseries for rotated in (False, True))
+    scale = np.max(np.abs(flat["energy"]))
+    assert np.max(np.abs(flat["energy"] - tilted["energy"])) <= 1e-10 * scale
+    for c in ("contact_force", "tangential_force"):
+        assert np.max(np.abs(flat[c] - tilted[c])) <= 1e-10 * np.max(np.abs(flat[c])), c
+    assert flat["n_stick"][-1] > 0 and np.all(flat["n_stick"] == tilted["n_stick"])
+    assert np.max(tilted["kinetic"]) <= 1e-20 * scale
+    with pytest.raises(StaticStartError, match="translation along x.*load works along it"):
+        simulate(_slope(20.0, True), pair=pair, dt=2e-5, T=1e-4)
+
+
+@pytest.mark.parametrize("pair,friction", [("P1+/P0", None), ("P2/P1", "coulomb")])
+def test_a_disc_at_the_bottom_of_a_bowl_starts_at_rest(pair, friction):
+    """demos/bowl_problem.py with theta0 = 0 (the disc touching the bowl's bottom) from u0 =
+    "equilibrium": the bowl carries the disc's weight (its mesh's area times rho g, within 1e-6; measured
+    5e-8 frictionless, where the disc rocks at the level below) and
+    the disc stays at rest: its largest kinetic energy within 1e-6 of the one from the unstressed start
+    (measured 7e-9 frictionless: the static rows are linearised at the reference configuration, the
+    run's at U_s, and they differ by O(u_t^2 / R) on the curved bowl; 1e-25 with friction, where the
+    contact node does not move tangentially)."""
+    spec = load_file(ROOT / "demos" / "bowl_problem.py")
+    T0 = spec.problem(COMM).parameters["period"]
+    kw = dict(pair=pair, dt=T0 / 1000, T=T0 / 20)
+    if friction:
+        kw.update(friction=friction, friction_options={"mu": 0.5})
+    runs = {}
+    for start in ("equilibrium", "rest"):
+        p = spec.problem(COMM, theta0=0.0, h=2.0)
+        runs[start] = simulate(dataclasses.replace(p, u0="equilibrium") if start == "equilibrium" else p,
+                               **kw).timeseries
+    area = COMM.allreduce(fem.assemble_scalar(fem.form(1.0 * ufl.dx(domain=p.mesh))), op=MPI.SUM)
+    weight = 1e-6 * area * G
+    eq = runs["equilibrium"]
+    assert np.max(np.abs(eq["contact_force"][1:] - weight)) <= 1e-6 * weight
+    assert np.max(eq["kinetic"]) <= 1e-6 * np.max(runs["rest"]["kinetic"])

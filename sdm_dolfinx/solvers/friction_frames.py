@@ -1,0 +1,72 @@
+"""Friction against an obstacle whose normal turns from node to node and step to step (a curved or
+tilted obstacle): the node frames of :class:`~sdm_dolfinx.solvers.friction_newton.FrictionalNewton`
+with ``frames=True``.
+
+Each contact node's unknowns are its Cartesian components in an orthonormal frame Q_i (row 0 the
+obstacle's normal n_i, then the tangents), given before every step by :meth:`NodeFrames.set_rows`
+with the bounds of n_i . x_i; the frictional Newton then works on the frame's components as on the
+axis-aligned dofs (:mod:`~sdm_dolfinx.solvers.friction_system`, "Frames"). The friction laws are
+isotropic in the tangent plane, so the solution does not depend on the tangents' choice.
+"""
+import numpy as np
+
+
+def frames_of(normals):
+    """(m, k, k) orthonormal frames whose first rows are the unit ``normals`` (m x k): in 2-D the
+    tangent (n_y, -n_x) (e_x for n = e_y, as the axis-aligned bound's tangential dof); in 3-D t1 the
+    axis of least |n_c| (the lowest such c) made orthogonal to n, t2 = n x t1 (a function of n alone: a
+    restart rebuilds the same frames). Friction is isotropic: the solution does not depend on the
+    tangents' choice, only the Newton iterations' start does."""
+    n = np.asarray(normals, dtype=float)
+    m, k = n.shape
+    Q = np.zeros((m, k, k))
+    Q[:, 0] = n
+    if k == 2:
+        Q[:, 1, 0], Q[:, 1, 1] = n[:, 1], -n[:, 0]
+        return Q
+    axis = np.zeros((m, 3))
+    axis[np.arange(m), np.argmin(np.abs(n), axis=1)] = 1.0
+    t1 = axis - np.einsum("ij,ij->i", axis, n)[:, None] * n
+    t1 /= np.linalg.norm(t1, axis=1)[:, None]
+    Q[:, 1], Q[:, 2] = t1, np.cross(n, t1)
+    return Q
+
+
+class NodeFrames:
+    """The frames' side of :class:`~sdm_dolfinx.solvers.friction_newton.FrictionalNewton` (a mixin:
+    it uses the solver's ``frames``, ``m``, ``ndofs``, ``tdofs``, ``lb`` and ``system``)."""
+
+    def set_rows(self, normals, lb):
+        """Frames (see the class): the unit normals (m x k, Cartesian) and the lower bounds of
+        n_i . x_i of the next step; the tangents are those of :func:`frames_of`."""
+        k = 2 if self.tdofs.ndim == 1 else 1 + self.tdofs.shape[1]
+        n = np.asarray(normals, dtype=float).reshape(self.m, k)
+        self.system.set_frames(frames_of(n))
+        self.lb = np.asarray(lb, dtype=float).reshape(self.m)
+
+    def _components(self, u):
+        """The values of the node's frame components of the owned array u at this rank's contact
+        nodes: (normal (m,), tangential (m,) or (m, 2))."""
+        if not self.frames:
+            return u[self.ndofs], u[self.tdofs]
+        y = self.system.rotate(np.asarray(u)[self.system.cdofs])
+        m = self.m
+        return y[:m], (y[m:] if self.tdofs.ndim == 1 else y[m:].reshape(2, m).T)
+
+    def tangential(self, u):
+        """The tangential components (the order of ``tdofs``) of the owned array ``u`` at this rank's
+        contact nodes: the reference ``xref_t`` of :meth:`solve` and the slip's ends (a copy)."""
+        return np.array(self._components(u)[1], dtype=float)
+
+    def cartesian(self, tangential):
+        """3-D frames: the tangential vectors (m x 2, along each node's t1, t2) as Cartesian ones (m x 3);
+        without frames, or in 2-D, ``tangential`` itself."""
+        Q = self.system.Q
+        tangential = np.asarray(tangential, dtype=float)
+        if not self.frames or Q is None or tangential.ndim == 1:
+            return tangential
+        return np.einsum("ik,ikc->ic", tangential, Q[:, 1:, :])
+
+    def imposed_gap(self, x):
+        """min over this rank's contact nodes of x_n - lb (in the frame; +inf without nodes)."""
+        return float(np.min(self._components(x)[0] - self.lb, initial=np.inf))
