@@ -24,7 +24,8 @@ Choice of epsilon (the literature leaves it open; GetFEM's demo takes k = gamma0
 1, for its rod of unit modulus): ``penalty`` (dimensionless, default :data:`DEFAULT_PENALTY`)
 times the stiffness per unit area of the mesh at the contact,
 
-    epsilon = penalty * sum_i A_ii / sum_i m_i      (sums over the constrained dofs),
+    epsilon = penalty * sum_i A_ii / sum_i m_i      (sums over the constrained dofs; against
+                                                     obstacles n_i^T A_ii n_i, the node's block),
 
 which is E / h for the P1 rod (A_00 = E / h, m_0 = 1: GetFEM's gamma0_P = penalty) and of the
 size E / h on any problem, without the problem having to declare a modulus. penalty = 1 makes
@@ -36,14 +37,22 @@ where the springs act; rod, tests/physics/test_penalty.py) like 1 / penalty when
 carry no mass (singular or redistributed mass: the force stays the contact stress), but only like
 penalty^(-1/2) with a standard mass, whose contact dofs' kinetic energy m v^2 / 2 at an impact
 goes into the spring (k delta^2 / 2): the impact force then grows like penalty^(1/2).
+
+**Gap rows** (fixed rigid obstacles, ``--constrain weighted``): the same springs on the rows G x >= g,
+lam_i = k_i (g_i - G_i X)_+, solved by :class:`~sdm_dolfinx.solvers.gap_newton.GapNewton` with the
+compliances 1/k on its Schur complement's diagonal; the stored energy is k_i / 2 times the squared
+penetration (against an obstacle the true signed distance, not the step's linearised row).
 """
 from mpi4py import MPI
+from petsc4py import PETSc
 
 import numpy as np
 
 from sdm_dolfinx.method.errors import DiscretisationError
+from sdm_dolfinx.method.obstacle_rows import nearest
 from sdm_dolfinx.params import Param
 from sdm_dolfinx.solvers import PenaltyNewton
+from sdm_dolfinx.solvers.gap_newton import GapNewton
 
 #: the default ``penalty``: epsilon = 1 x the mesh's stiffness per unit area at the contact (see the module)
 DEFAULT_PENALTY = 1.0
@@ -67,8 +76,10 @@ def stiffness_scale(discretisation):
     area of the mesh at the contact (E / h for the P1 rod); 1.0 without constrained dofs."""
     d = discretisation
     diag = d.A.getDiagonal()
-    sums = d.comm.allreduce(np.array([float(np.sum(diag.array_r[d.cdofs])), float(np.sum(d.cmeasure))]),
-                            op=MPI.SUM)
+    stiff = float(np.sum(diag.array_r[d.cdofs]))
+    if d.obstacle_rows is not None:     # obstacles: n_i^T A_ii n_i, the node block along the normal (invariant)
+        stiff = _normal_stiffness(d)
+    sums = d.comm.allreduce(np.array([stiff, float(np.sum(d.cmeasure))]), op=MPI.SUM)
     diag.destroy()
     if d.num_constraints == 0:
         return 1.0
@@ -76,6 +87,20 @@ def stiffness_scale(discretisation):
         raise DiscretisationError(f"problem {d.problem.name!r}: the penalty needs constrained dofs with a positive "
                                   f"lumped measure and stiffness (sums {sums[1]:g}, {sums[0]:g})")
     return float(sums[0] / sums[1])
+
+
+def _normal_stiffness(d):
+    """sum over this rank's constrained nodes of n_i^T A_ii n_i (A_ii the node's gdim x gdim diagonal
+    block, n_i the nearest obstacle's normal at the reference node, t = 0): the axis-aligned bound's
+    A_cc for n = e_c, and unchanged when the body and the obstacle are rotated together."""
+    rows = d.obstacle_rows
+    _, nrm, _ = nearest(rows.obstacles, rows.x, 0.0)
+    r0, total = d.A.getOwnershipRange()[0], 0.0
+    for i, dofs in enumerate(rows.dofs):
+        g = (r0 + dofs).astype(PETSc.IntType)
+        n = nrm[:rows.gdim, i]
+        total += float(n @ d.A.getValues(g, g) @ n)
+    return total
 
 
 class Penalty:
@@ -101,6 +126,14 @@ class Penalty:
         self.epsilon = self.penalty * stiffness_scale(d)
         self.k = self.epsilon * np.asarray(d.cmeasure, dtype=float)
         self.cdofs, self.lb = d.cdofs, np.asarray(d.lb, dtype=float)
+        self.rows = d.obstacle_rows if d.obstacle_rows is not None else getattr(d, "weighted_rows", None)
+        if self.rows is not None:       # gap rows: springs on G x >= g (obstacles, the weighted gap)
+            self.solver = GapNewton(context.K, None if d.obstacle_rows is None else d.obstacle_rows.dofs,
+                                    symmetric_positive=not context.block, factor_matrix=context.factor_matrix,
+                                    G=None if d.obstacle_rows is not None else self.rows.G, stiffness=self.k)
+            if d.obstacle_rows is None:
+                self.solver.set_rows(None, self.rows.g)
+            return
         self.solver = PenaltyNewton(context.K, d.cdofs, d.lb, self.k, symmetric_positive=not context.block,
                                     factor_matrix=context.factor_matrix)
 
@@ -117,8 +150,15 @@ class Penalty:
         return self.forces(X.array_r)
 
     def energy(self, U):
-        """sum_i k_i / 2 (lb_i - U_i)_+^2 over every rank (collective)."""
-        s = np.maximum(self.lb - U.array_r[self.cdofs], 0.0)
+        """sum_i k_i / 2 (lb_i - U_i)_+^2 over every rank (collective); gap rows: their penetration,
+        against obstacles the true signed distance -phi(a_i + U_i) (fixed obstacles), for the weighted
+        gap g_i - G_i U."""
+        if self.rows is None:
+            s = np.maximum(self.lb - U.array_r[self.cdofs], 0.0)
+        elif self.rows is self.discretisation.obstacle_rows:
+            s = np.maximum(-self.rows.phi(U.array_r, 0.0), 0.0)
+        else:
+            s = np.maximum(self.rows.g - self.solver.row_values(U.array_r), 0.0)
         return float(self.discretisation.comm.allreduce(float(0.5 * np.sum(self.k * s * s)), op=MPI.SUM))
 
     def force(self, X, out):

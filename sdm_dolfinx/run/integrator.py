@@ -142,7 +142,8 @@ class Integrator:
             scale = a if a is not None and a * a == c_M else np.sqrt(c_M)
             self.factor_matrix = sparse_factor_matrix(self.K, d.A, d.B, d.c_lumped, scale, d.ddofs)
         self.slip = None
-        if (d.obstacle_rows is not None and self.friction is None) or d.weighted_rows is not None:  # G x >= g
+        gap_rows = (d.obstacle_rows is not None and self.friction is None) or d.weighted_rows is not None
+        if gap_rows and self.contact == "exact":            # G x >= g
             what = "obstacles" if d.obstacle_rows is not None else "constrain weighted"
             self.linear_strategy, self.linear_reason = "schur", f"{what}: gap rows (dense Schur complement)"
             self.solver = GapNewton(self.K, None if d.obstacle_rows is None else d.obstacle_rows.dofs,
@@ -275,8 +276,9 @@ class Integrator:
         comm = d.comm
         # a contact treatment imposes nothing (penetration is its model): +inf
         gap_rows = rows is not None or d.weighted_rows is not None
-        imposed = (self.solver.imposed_gap(X.array_r) if gap_rows        # the gap rows' own G X - g
-                   else ts.imposed_gap(self, X) if self.treatment is None else float("inf"))
+        imposed = (float("inf") if self.treatment is not None
+                   else self.solver.imposed_gap(X.array_r) if gap_rows        # the gap rows' own G X - g
+                   else ts.imposed_gap(self, X))
         info["gap_imposed"] = comm.allreduce(imposed, op=MPI.MIN)
         self.moving.after_solve(self.lam, info)     # the bound at t_{n+1}, the step's obstacle_work
         Un = U.array.copy() if self.friction is not None else None

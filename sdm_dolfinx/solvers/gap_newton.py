@@ -55,6 +55,8 @@ class _Rows:
         self._ncols = 0
         self._Zf: Optional[np.ndarray] = np.zeros((K.getLocalSize()[0], 0), order="F")
         self._rhs = K.createVecLeft()
+        #: the rows' compliances 1/k (a penalty: lam = k (g - G x)_+), or None: the exact contact
+        self.compliance: Optional[Array] = None
 
     # the subclasses'
     def values(self, x: Array) -> Array:
@@ -131,6 +133,8 @@ class _Rows:
         np.add.at(P, (np.searchsorted(used, gA[a_idx]), a_idx[0]), cA[a_idx])
         GZ = self._gz(slots)
         S = np.vstack(comm.allgather(GZ[rows] @ P))
+        if self.compliance is not None:         # a penalty: G_A x = g_A - mu / k_A
+            S[np.diag_indices_from(S)] += np.concatenate(comm.allgather(self.compliance[rows]))
         r = np.concatenate(comm.allgather(self.g[rows] - self._gx0[rows]))
         mu = np.linalg.solve(S, r)
         pmu = P @ mu
@@ -201,7 +205,8 @@ class NodeRows(_Rows):
         rows = self._rows
         if len(rows):       # one row per node (the rows share no dof): move along the row to g exactly
             c, xr = self.coef[rows], x.array[self.dofs[rows]]
-            step = (self.g[rows] - np.einsum("ik,ik->i", c, xr)) / np.einsum("ik,ik->i", c, c)
+            target = self.g[rows] if self.compliance is None else self.g[rows] - self.compliance[rows] * self._mu_local
+            step = (target - np.einsum("ik,ik->i", c, xr)) / np.einsum("ik,ik->i", c, c)
             x.array[self.dofs[rows]] = xr + step[:, None] * c
 
 
@@ -284,6 +289,10 @@ class GapNewton:
         rtol: tolerance of the complementarity tests, relative to max|b|.
         max_it: Newton iterations before giving up.
         max_columns: the most columns K^-1 e_j cached (the largest active zone it solves).
+        stiffness: a penalty instead of the exact contact: the rows' spring stiffnesses k (m,), the
+            force lam = k (g - G x)_+ (:mod:`sdm_dolfinx.contact.penalty`); each Newton system is
+            then (G_A K^-1 G_A^T + diag(1/k_A)) mu = g_A - G_A x0, as for the unit rows'
+            :class:`~sdm_dolfinx.solvers.penalty.PenaltyNewton`.
 
     ``lam`` (m,) and ``active`` (m,) are those of the last solve; ``g`` the rows' right-hand sides.
     """
@@ -291,7 +300,8 @@ class GapNewton:
     def __init__(self, K: PETSc.Mat, dofs: Optional[npt.ArrayLike] = None, symmetric_positive: bool = True,
                  prefix: Optional[str] = None, options: Optional[Mapping[str, Any]] = None,
                  factor_matrix: Optional[PETSc.Mat] = None, rtol: float = 1e-10, max_it: int = 500,
-                 max_columns: int = SCHUR_MAX_COLUMNS, G: Optional[PETSc.Mat] = None) -> None:
+                 max_columns: int = SCHUR_MAX_COLUMNS, G: Optional[PETSc.Mat] = None,
+                 stiffness: Optional[npt.ArrayLike] = None) -> None:
         if (dofs is None) == (G is None):
             raise ValueError("GapNewton takes node rows (dofs) or a matrix G, one of them")
         self.K, self.comm = K, K.getComm().tompi4py()
@@ -303,6 +313,8 @@ class GapNewton:
         self.rows: Union[NodeRows, MatrixRows] = (NodeRows(K, self.fac, dofs, max_columns) if G is None
                                                   else MatrixRows(K, self.fac, G, max_columns))
         m = len(self.rows.g)
+        if stiffness is not None:
+            self.rows.compliance = 1.0 / np.broadcast_to(np.asarray(stiffness, dtype=float), (m,))
         self.num_constraints = self.comm.allreduce(m, op=MPI.SUM)
         self.lam, self.active = np.zeros(m), np.zeros(m, dtype=bool)
         # the Alart–Curnier scale r: the mean of K's diagonal at the dofs the rows read

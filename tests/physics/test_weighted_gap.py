@@ -20,7 +20,8 @@
   ranks (a measure counted twice on the ranks' shared vertices made it 6 % high on 2 ranks before).
 * What the weighted rows do not take is refused in one line: 1-D (the rows would be the vertex
   constraint), a problem without contact facets (the membrane: its constraint is inside the domain),
-  obstacles or a moving bound, friction, the penalty treatment, the equilibrium start.
+  obstacles or a moving bound, friction, the Nitsche treatment, the equilibrium start (the penalty
+  treatment takes the weighted rows: test_penalty_gap_rows.py).
 """
 from pathlib import Path
 
@@ -67,7 +68,7 @@ def test_weighted_rows_do_not_mend_an_ill_posed_pair(pair):
     (lambda: rod1d.problem(COMM), {}, "in 1-D"),
     (lambda: membrane.problem(COMM, N=6), {}, "no contact facet"),
     (lambda: block.problem(COMM, nx=4, ny=2, start="rest"), dict(friction="coulomb", friction_options={"mu": 0.3}), "friction"),
-    (lambda: block.problem(COMM, nx=4, ny=2, start="rest"), dict(contact="penalty"), "contact 'penalty'"),
+    (lambda: block.problem(COMM, nx=4, ny=2, start="rest"), dict(contact="nitsche"), "contact 'nitsche'"),
     (lambda: block.problem(COMM, nx=4, ny=2), {}, "equilibrium"),
 ])
 def test_what_the_weighted_rows_do_not_take_is_refused(make, given, words):
