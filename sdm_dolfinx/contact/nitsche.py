@@ -76,6 +76,7 @@ from sdm_dolfinx.contact.boundary import (cell_diameter, check_on_boundary, cont
 from sdm_dolfinx.contact.nitsche_newton import NitscheNewton
 from sdm_dolfinx.method.discretisation import owned_size
 from sdm_dolfinx.method.errors import DiscretisationError
+from sdm_dolfinx.method.obstacle_rows import nearest
 from sdm_dolfinx.params import Param
 
 #: the variants of Nitsche's term: symmetric (1), incomplete (0), skew-symmetric (-1)
@@ -147,9 +148,13 @@ class Nitsche:
         self.modulus = self._normal_modulus()
         self.h = cell_diameter(msh)
         self.gamma = fem.Constant(msh, self.gamma0 * self.modulus) / self.h
-        self.bound = fem.Function(compat.function_space(msh, compat.element("Lagrange", compat.cell_name(msh), 2)))
-        self.bound.interpolate(lambda x: np.asarray(p.lower_bound(x), dtype=float).reshape(-1))
         self.u = fem.Function(d.W)
+        self.obstacle = None if d.obstacle_rows is None else ObstacleField(d, self.u)
+        if self.obstacle is None:
+            self.bound = fem.Function(compat.function_space(msh, compat.element("Lagrange", compat.cell_name(msh), 2)))
+            self.bound.interpolate(lambda x: np.asarray(p.lower_bound(x), dtype=float).reshape(-1))
+        else:                   # against obstacles: u . n >= bound, both Functions set before every step
+            self.bound = self.obstacle.bound
         self.nW = owned_size(d.W)
         self._compile()
         #: the dofs the boundary term reads and writes: (global indices on every rank, owned local ones)
@@ -158,14 +163,24 @@ class Nitsche:
 
     # ------------------------------------------------------------------ the terms
     def along(self, u):
-        """u.e: the displacement along the obstacle's push (u_c, or u for a scalar problem)."""
+        """u.e: the displacement along the obstacle's push (u_c, or u for a scalar problem; against
+        obstacles u . n, n the obstacle's normal field)."""
+        if self.obstacle is not None:
+            return ufl.dot(u, self.obstacle.normal)
         return u[self.c] if self.problem.shape else u
 
     def sigma_n(self, u):
         """-(sigma(u) nu).e (see the module): the normal stress, < 0 in compression."""
         nu = ufl.FacetNormal(self.problem.mesh)
         t = ufl.dot(self.stress(u), nu)
+        if self.obstacle is not None:
+            return -ufl.dot(t, self.obstacle.normal)
         return -(t[self.c] if self.problem.shape else t)
+
+    def before_step(self, U, t, t1, weight):
+        """Against obstacles: the normal field and the bound of the step, linearised at U (U^n) at
+        time t (:class:`ObstacleField`; fixed obstacles only)."""
+        self.obstacle.update(U, t)
 
     def P(self, u):
         """P_gamma(u) = sigma_n(u) + gamma (u.e - bound): < 0 where the point is in contact."""
@@ -274,6 +289,39 @@ class Nitsche:
         self.solver.destroy()
         for o in (self._R, self._JN, self._p):
             o.destroy()
+
+
+class ObstacleField:
+    """Nitsche's term against rigid obstacles (fixed ones): u . n >= bound on Gamma_C with n and bound
+    Lagrange Functions (W^h's degree, 1 for P1+) set before every step from the nearest obstacle at the
+    current position y = x + U^n of each of their nodes: n(y) and bound = n . U^n - phi(y), the rows of
+    :mod:`sdm_dolfinx.method.obstacle_rows` as fields (on a plane exactly the axis-aligned bound
+    rotated; on a curved obstacle the linearisation error O(|d_t|^2 / R) of those rows)."""
+
+    def __init__(self, d, u):
+        msh, rows = d.problem.mesh, d.obstacle_rows
+        family, degree = d.pair.w
+        deg = 1 if family == "P+" else int(degree)
+        cell, gdim = compat.cell_name(msh), rows.gdim
+        self.obstacles, self.gdim, self.u = rows.obstacles, gdim, u
+        self.normal = fem.Function(compat.function_space(msh, compat.element("Lagrange", cell, deg, (gdim,))))
+        self.bound = fem.Function(compat.function_space(msh, compat.element("Lagrange", cell, deg)))
+        self._un = fem.Function(self.normal.function_space)
+        self._x = self.bound.function_space.tabulate_dof_coordinates().T.copy()       # (3, n) with ghosts
+        self.owned = owned_size(d.W)
+
+    def update(self, U, t):
+        """n and bound at the state U (a PETSc vector of W^h) at time t (collective: ghosts included)."""
+        self.u.x.array[:self.owned] = U.array_r[:self.owned]
+        self.u.x.scatter_forward()
+        self._un.interpolate(self.u)
+        un = self._un.x.array.reshape(-1, self.gdim)
+        y = self._x.copy()
+        y[:self.gdim] += un.T
+        phi, nrm, _ = nearest(self.obstacles, y, t)
+        n = nrm[:self.gdim].T
+        self.normal.x.array[:] = n.reshape(-1)
+        self.bound.x.array[:] = np.einsum("ik,ik->i", n, un) - phi
 
 
 def make(context, options):

@@ -75,10 +75,11 @@ def refusal(integ: Any, scheme: Any, vi_solver: str, linear: str) -> Optional[st
             else "constrain 'weighted' (the weighted gap's rows)")
     if scheme.bound_weight is None:
         return f"{what}, which scheme {scheme.name!r} does not take: use the midpoint or backward-euler scheme"
-    if integ.contact not in ("exact", "penalty"):
-        return f"{what}, which contact {integ.contact!r} does not take yet: use contact 'exact' or 'penalty'"
-    if integ.contact == "penalty" and d.obstacle_rows is not None and d.obstacle_rows.moves:
-        return f"{what} that move, which contact 'penalty' does not take yet: use contact 'exact'"
+    takes = ("exact", "penalty") if d.obstacle_rows is None else ("exact", "penalty", "nitsche")
+    if integ.contact not in takes:
+        return f"{what}, which contact {integ.contact!r} does not take yet: use contact {' or '.join(map(repr, takes))}"
+    if integ.contact != "exact" and d.obstacle_rows is not None and d.obstacle_rows.moves:
+        return f"{what} that move, which contact {integ.contact!r} does not take yet: use contact 'exact'"
     if integ.friction is not None and d.obstacle_rows is None:
         return f"{what}: friction on the weighted gap is not built yet (frictionless only)"
     if vi_solver != "ssn" or linear not in ("auto", "schur"):

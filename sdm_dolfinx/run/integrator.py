@@ -259,7 +259,9 @@ class Integrator:
             self.parts.lift(self, U, t)
         self.moving.before_step(n, t)       # a moving obstacle: the step's bound into d.lb (else nothing)
         rows, t1 = d.obstacle_rows, ((n + 1) * self.dt if t == n * self.dt else t + self.dt)
-        if rows is not None:                # gap rows linearised at U^n (method/obstacle_rows.py)
+        if rows is not None and hasattr(self.treatment, "before_step"):    # Nitsche: its fields at U^n
+            self.treatment.before_step(U, t, t1, ts.bound_weight)
+        elif rows is not None:              # gap rows linearised at U^n (method/obstacle_rows.py)
             self.solver.set_rows(*rows.rows(U.array_r, t, t1, ts.bound_weight))
         if ts.stateful and self.state is None:
             self.state = ts.start(self, U, V, t)

@@ -31,7 +31,7 @@
   1/2, n . X >= U^n_y - (phi(t_n) + phi(t_{n+1}))/2 = (s(t_n) + s(t_{n+1}))/2 - y, the moving bound's
   mean of the bounds, and its work lam (phi(t_n) - phi(t_{n+1})) = lam (s(t_{n+1}) - s(t_n)) is the
   moving bound's: histories and ``obstacle_work`` asserted equal within 1e-10 of their scale.
-* What the gap rows do not take yet is refused in one line (Nitsche, the
+* What the gap rows do not take yet is refused in one line (the
   schemes that do not say when they impose a bound, SNES VI and the other linear strategies, an
   obstacle and a lower_bound at once, a scalar problem, an object without ``distance``), and an
   initial state inside an obstacle is refused like one below the bound.
@@ -171,7 +171,6 @@ def _slope():
 
 
 @pytest.mark.parametrize("given,words", [
-    (dict(contact="nitsche"), "contact 'nitsche'"),
     (dict(scheme="newmark"), "scheme 'newmark'"),
     (dict(vi_solver="vinewtonrsls"), "linear strategy schur"),
     (dict(linear="cg-factor"), "linear strategy schur"),
