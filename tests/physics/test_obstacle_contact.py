@@ -78,6 +78,25 @@ def test_a_plane_declared_as_a_signed_distance_is_the_old_bound(pair):
 W, H, E, NU, RHO, G = 20.0, 10.0, 1000.0, 0.3, 1e-6, 9810.0
 
 
+def _elastic_body(msh, grav, bottom, contact, columns, E=E, nu=NU, rho=RHO):
+    """The isotropic elastic body meshed by ``msh`` (2-D or 3-D) under the gravity vector ``grav``, at rest
+    and unstressed, constrained where ``bottom(x)`` (its last component bounded: ``contact`` gives the
+    lower_bound or the obstacles), with the time-series ``columns``."""
+    dim = msh.topology.dim
+    facets = np.sort(dmesh.locate_entities_boundary(msh, dim - 1, bottom)).astype(np.int32)
+    ds_c = ufl.Measure("ds", domain=msh, subdomain_data=dmesh.meshtags(msh, dim - 1, facets, np.ones_like(facets)))(1)
+    mu, lmbda = E / (2 * (1 + nu)), E * nu / ((1 + nu) * (1 - 2 * nu))
+    eps = lambda u: ufl.sym(ufl.grad(u))                                     # noqa: E731
+    sigma = lambda u: lmbda * ufl.tr(eps(u)) * ufl.Identity(dim) + 2 * mu * eps(u)   # noqa: E731
+    gc = fem.Constant(msh, PETSc.ScalarType(grav))
+    zero = lambda x: np.zeros((dim, x.shape[1]))                             # noqa: E731
+    return Problem(name="slope", mesh=msh, shape=(dim,), rho=rho,
+                   a=lambda u, w: ufl.inner(sigma(u), eps(w)) * ufl.dx, l=lambda w: rho * ufl.inner(gc, w) * ufl.dx,
+                   u0=zero, v0=zero, constraint_vertices=lambda m: dmesh.locate_entities_boundary(m, 0, bottom),
+                   constraint_component=dim - 1, constraint_measure=lambda q: q * ds_c, stress=sigma,
+                   extra_columns=columns, **contact)
+
+
 def _block_on_slope(theta, rotated, n=8):
     """The block W x H on the plane of inclination ``theta`` (degrees): its mesh rotated onto the
     plane through 0 with normal (-sin, cos) under vertical gravity, or axis-aligned on y >= 0 under
@@ -95,18 +114,7 @@ def _block_on_slope(theta, rotated, n=8):
         grav = np.array([-G * np.sin(th), -G * np.cos(th)])
         bottom = lambda x: np.isclose(x[1], 0.0)                             # noqa: E731
         contact = dict(lower_bound=lambda x: -x[1])
-    facets = np.sort(dmesh.locate_entities_boundary(msh, 1, bottom)).astype(np.int32)
-    ds_c = ufl.Measure("ds", domain=msh, subdomain_data=dmesh.meshtags(msh, 1, facets, np.ones_like(facets)))(1)
-    mu, lmbda = E / (2 * (1 + NU)), E * NU / ((1 + NU) * (1 - 2 * NU))
-    eps = lambda u: ufl.sym(ufl.grad(u))                                     # noqa: E731
-    sigma = lambda u: lmbda * ufl.tr(eps(u)) * ufl.Identity(2) + 2 * mu * eps(u)   # noqa: E731
-    gc = fem.Constant(msh, PETSc.ScalarType(grav))
-    zero = lambda x: np.zeros((2, x.shape[1]))                               # noqa: E731
-    p = Problem(name="slope", mesh=msh, shape=(2,), rho=RHO,
-                a=lambda u, w: ufl.inner(sigma(u), eps(w)) * ufl.dx, l=lambda w: RHO * ufl.inner(gc, w) * ufl.dx,
-                u0=zero, v0=zero, constraint_vertices=lambda m: dmesh.locate_entities_boundary(m, 0, bottom),
-                constraint_component=1, constraint_measure=lambda q: q * ds_c, stress=sigma,
-                extra_columns=("contact_force", "momentum_x", "momentum_y"), **contact)
+    p = _elastic_body(msh, grav, bottom, contact, ("contact_force", "momentum_x", "momentum_y"))
     return p, R
 
 

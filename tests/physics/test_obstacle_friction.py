@@ -31,23 +31,20 @@ tolerance (1e-10 of max|b|) and round-off:
   component: ``dirichlet_facets`` fix every component and drop the node from the constraint, Dirichlet
   parts at constrained nodes are refused: so friction's frames always see free nodes.)
 """
-import dataclasses
 from pathlib import Path
 
 from mpi4py import MPI
-from petsc4py import PETSc
 
 import numpy as np
 import pytest
-import ufl
-from dolfinx import fem, mesh as dmesh
+from dolfinx import mesh as dmesh
 
 from sdm_dolfinx.errors import SdmError
 from sdm_dolfinx.obstacles import HalfSpace
-from sdm_dolfinx.problems import Problem, load_file
+from sdm_dolfinx.problems import load_file
 from sdm_dolfinx.run import simulate
 
-from test_obstacle_contact import _block_on_slope, _scale_diff
+from test_obstacle_contact import _block_on_slope, _elastic_body, _scale_diff
 
 COMM = MPI.COMM_WORLD
 DEMOS = Path(__file__).resolve().parents[2] / "demos"
@@ -95,18 +92,7 @@ def _box_on_slope(theta, rotated, L=10.0, H=5.0, E=1000.0, nu=0.3, rho=1e-6, g=9
         grav = R.T @ np.array([0.0, 0.0, -g])
         bottom = lambda x: np.isclose(x[2], 0.0)                              # noqa: E731
         contact = dict(lower_bound=lambda x: -x[2])
-    facets = np.sort(dmesh.locate_entities_boundary(msh, 2, bottom)).astype(np.int32)
-    ds_c = ufl.Measure("ds", domain=msh, subdomain_data=dmesh.meshtags(msh, 2, facets, np.ones_like(facets)))(1)
-    mu, lmbda = E / (2 * (1 + nu)), E * nu / ((1 + nu) * (1 - 2 * nu))
-    eps = lambda u: ufl.sym(ufl.grad(u))                                      # noqa: E731
-    sigma = lambda u: lmbda * ufl.tr(eps(u)) * ufl.Identity(3) + 2 * mu * eps(u)   # noqa: E731
-    gc = fem.Constant(msh, PETSc.ScalarType(grav))
-    zero = lambda x: np.zeros((3, x.shape[1]))                                # noqa: E731
-    p = Problem(name="box_on_slope", mesh=msh, shape=(3,), rho=rho,
-                a=lambda u, w: ufl.inner(sigma(u), eps(w)) * ufl.dx, l=lambda w: rho * ufl.inner(gc, w) * ufl.dx,
-                u0=zero, v0=zero, constraint_vertices=lambda m: dmesh.locate_entities_boundary(m, 0, bottom),
-                constraint_component=2, constraint_measure=lambda q: q * ds_c, stress=sigma,
-                extra_columns=("contact_force",), **contact)
+    p = _elastic_body(msh, grav, bottom, contact, ("contact_force",), E=E, nu=nu, rho=rho)
     return p, R
 
 
