@@ -52,7 +52,7 @@ from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.method.obstacle_rows import nearest
 from sdm_dolfinx.params import Param
 from sdm_dolfinx.solvers import PenaltyNewton
-from sdm_dolfinx.solvers.gap_newton import GapNewton
+from sdm_dolfinx.method.gap_solver import gap_solver
 
 #: the default ``penalty``: epsilon = 1 x the mesh's stiffness per unit area at the contact (see the module)
 DEFAULT_PENALTY = 1.0
@@ -128,11 +128,8 @@ class Penalty:
         self.cdofs, self.lb = d.cdofs, np.asarray(d.lb, dtype=float)
         self.rows = d.obstacle_rows if d.obstacle_rows is not None else getattr(d, "weighted_rows", None)
         if self.rows is not None:       # gap rows: springs on G x >= g (obstacles, the weighted gap)
-            self.solver = GapNewton(context.K, None if d.obstacle_rows is None else d.obstacle_rows.dofs,
-                                    symmetric_positive=not context.block, factor_matrix=context.factor_matrix,
-                                    G=None if d.obstacle_rows is not None else self.rows.G, stiffness=self.k)
-            if d.obstacle_rows is None:
-                self.solver.set_rows(None, self.rows.g)
+            self.solver = gap_solver(d, context.K, symmetric_positive=not context.block,
+                                     factor_matrix=context.factor_matrix, stiffness=self.k)[0]
             return
         self.solver = PenaltyNewton(context.K, d.cdofs, d.lb, self.k, symmetric_positive=not context.block,
                                     factor_matrix=context.factor_matrix)

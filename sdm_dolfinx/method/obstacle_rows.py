@@ -82,8 +82,13 @@ def refusal(integ: Any, scheme: Any, vi_solver: str, linear: str) -> Optional[st
         return f"{what} that move, which contact {integ.contact!r} does not take yet: use contact 'exact'"
     if integ.friction is not None and d.obstacle_rows is None:
         return f"{what}: friction on the weighted gap is not built yet (frictionless only)"
-    if vi_solver != "ssn" or linear not in ("auto", "schur"):
-        return (f"{what}: their gap rows are solved by the semi-smooth Newton with linear strategy schur only "
+    snes = vi_solver in ("vinewtonrsls", "vinewtonssls") and d.obstacle_rows is not None
+    if snes and (integ.contact != "exact" or integ.friction is not None or linear not in ("auto", "lu")):
+        return (f"{what}: vi_solver {vi_solver!r} takes the exact frictionless contact with linear 'auto' or 'lu' "
+                f"only (got contact {integ.contact!r}, linear {linear!r})")
+    if not snes and (vi_solver != "ssn" or linear not in ("auto", "schur")):
+        return (f"{what}: their gap rows are solved by the semi-smooth Newton with linear strategy schur"
+                f"{' (or, against obstacles, by SNES VI)' if d.obstacle_rows is not None else ''} only "
                 f"(got vi_solver {vi_solver!r}, linear {linear!r})")
     return None
 

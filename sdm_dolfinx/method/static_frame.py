@@ -2,12 +2,10 @@
 :mod:`sdm_dolfinx.method.equilibrium`): U = T Y, at each constrained node U_i = Q_i^T Y_i with Q_i
 orthonormal and its row ``constraint_component`` the nearest obstacle's normal at the reference node
 (t = 0), so that each node's row n_i . U_i >= -phi(a_i) is the bound of one unknown Y_c."""
-from petsc4py import PETSc
-
 import numpy as np
 
 from sdm_dolfinx.method.obstacle_rows import nearest
-from sdm_dolfinx.solvers.friction_frames import frames_of
+from sdm_dolfinx.solvers.friction_frames import at_component, frames_of, rotation
 
 
 class ObstacleFrame:
@@ -21,22 +19,10 @@ class ObstacleFrame:
         self.d, self.dofs, k = d, rows.dofs, rows.gdim
         phi, nrm, _ = nearest(rows.obstacles, rows.x, 0.0)
         Q = frames_of(np.ascontiguousarray(nrm[:k].T)) if len(phi) else np.zeros((0, k, k))
-        self.Q = np.empty_like(Q)                         # the normal at row comp, the tangents around it
-        self.Q[:, comp] = Q[:, 0]
-        for j, c in enumerate(c for c in range(k) if c != comp):
-            self.Q[:, c] = Q[:, 1 + j]
+        self.Q = at_component(Q, comp)
         self.lb = -phi
         A = d.A
-        r0, nloc = A.getOwnershipRange()[0], A.getLocalSize()[0]
-        T = PETSc.Mat().createAIJ(A.getSizes(), nnz=k, comm=A.getComm())
-        off = np.ones(nloc, dtype=bool)
-        off[self.dofs.reshape(-1)] = False
-        for i in np.flatnonzero(off):
-            T.setValue(r0 + i, r0 + i, 1.0)
-        for i in range(len(self.dofs)):                   # U_c = sum_k Q_kc Y_k at the node's dofs
-            g = (r0 + self.dofs[i]).astype(PETSc.IntType)
-            T.setValues(g, g, np.ascontiguousarray(self.Q[i].T, dtype=PETSc.ScalarType))
-        T.assemble()
+        T = rotation(A, self.dofs, self.Q)
         self.A = A.PtAP(T)
         T.destroy()
         self._tmp = A.createVecLeft()

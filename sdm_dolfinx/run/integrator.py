@@ -28,6 +28,7 @@ import numpy as np
 
 from sdm_dolfinx.method import iterative as _iterative, moving_bound as _mb, step_matrix as _step_matrix
 from sdm_dolfinx.method import obstacle_rows as _obstacles
+from sdm_dolfinx.method.gap_solver import gap_solver
 from sdm_dolfinx.contact import friction as _friction, friction_bound as _friction_bound
 from sdm_dolfinx.contact.context import StepContext
 from sdm_dolfinx.run import prescribed as _prescribed
@@ -36,7 +37,6 @@ from sdm_dolfinx.errors import StepError
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.solvers import VIError, choose_strategy, make_vi_solver, sparse_factor_matrix
 from sdm_dolfinx.solvers.schur import SCHUR_MAX_ACTIVE_3D
-from sdm_dolfinx.solvers.gap_newton import GapNewton
 
 #: the registered time schemes' names (:mod:`sdm_dolfinx.schemes`)
 SCHEMES = schemes.names()
@@ -143,15 +143,9 @@ class Integrator:
             self.factor_matrix = sparse_factor_matrix(self.K, d.A, d.B, d.c_lumped, scale, d.ddofs)
         self.slip = None
         gap_rows = (d.obstacle_rows is not None and self.friction is None) or d.weighted_rows is not None
-        if gap_rows and self.contact == "exact":            # G x >= g
-            what = "obstacles" if d.obstacle_rows is not None else "constrain weighted"
-            self.linear_strategy, self.linear_reason = "schur", f"{what}: gap rows (dense Schur complement)"
-            self.solver = GapNewton(self.K, None if d.obstacle_rows is None else d.obstacle_rows.dofs,
-                                    symmetric_positive=not self.block, options=options,
-                                    factor_matrix=self.factor_matrix,
-                                    G=None if d.weighted_rows is None else d.weighted_rows.G)
-            if d.weighted_rows is not None:
-                self.solver.set_rows(None, d.weighted_rows.g)
+        if gap_rows and self.contact == "exact":            # G x >= g (method/gap_solver.py)
+            self.solver, self.linear_strategy, self.linear_reason = gap_solver(
+                d, self.K, vi_solver, not self.block, options, self.factor_matrix)
         elif self.contact != "exact":
             from sdm_dolfinx import contact as _contact  # lazily: a registry of its own
             context = StepContext(self.K, d, self.dt, self.block, self.factor_matrix)     # never the Integrator

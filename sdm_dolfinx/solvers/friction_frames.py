@@ -8,6 +8,8 @@ with the bounds of n_i . x_i; the frictional Newton then works on the frame's co
 axis-aligned dofs (:mod:`~sdm_dolfinx.solvers.friction_system`, "Frames"). The friction laws are
 isotropic in the tangent plane, so the solution does not depend on the tangents' choice.
 """
+from petsc4py import PETSc
+
 import numpy as np
 
 
@@ -30,6 +32,35 @@ def frames_of(normals):
     t1 /= np.linalg.norm(t1, axis=1)[:, None]
     Q[:, 1], Q[:, 2] = t1, np.cross(n, t1)
     return Q
+
+
+def at_component(Q, comp):
+    """The frames Q (m, k, k; row 0 the normal) with their rows reordered so that the normal is row
+    ``comp`` and the tangents fill the other rows in order."""
+    out = np.empty_like(Q)
+    out[:, comp] = Q[:, 0]
+    for j, c in enumerate(c for c in range(Q.shape[1]) if c != comp):
+        out[:, c] = Q[:, 1 + j]
+    return out
+
+
+def rotation(A, dofs, Q, T=None):
+    """The PETSc matrix T (A's layout) with U = T Y: U_i = Q_i^T Y_i at the nodes whose owned local dofs
+    are ``dofs`` (m, k), the identity elsewhere; ``T`` (an earlier result) is refilled in place."""
+    r0, nloc = A.getOwnershipRange()[0], A.getLocalSize()[0]
+    if T is None:
+        T = PETSc.Mat().createAIJ(A.getSizes(), nnz=Q.shape[1] if len(Q) else 1, comm=A.getComm())
+    else:
+        T.zeroEntries()
+    off = np.ones(nloc, dtype=bool)
+    off[np.asarray(dofs).reshape(-1)] = False
+    for i in np.flatnonzero(off):
+        T.setValue(r0 + i, r0 + i, 1.0)
+    for i in range(len(dofs)):                      # U_c = sum_k Q_kc Y_k at the node's dofs
+        g = (r0 + np.asarray(dofs[i])).astype(PETSc.IntType)
+        T.setValues(g, g, np.ascontiguousarray(Q[i].T, dtype=PETSc.ScalarType))
+    T.assemble()
+    return T
 
 
 class NodeFrames:
