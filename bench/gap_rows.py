@@ -11,7 +11,10 @@ factorisation for the run (``linear="schur"``):
 * ``bound``: the built-in problem, its foundation the bound ``lower_bound`` (the semi-smooth Newton
   on unit rows, :mod:`sdm_dolfinx.solvers.schur`);
 * ``plane``: the same with ``lower_bound=None, obstacles=[HalfSpace(...)]`` (the gap-row Newton, the
-  rows recomputed before every step from the signed distance).
+  rows recomputed before every step from the signed distance);
+* ``bound-coulomb``, ``plane-coulomb`` (``--friction``): both with Coulomb friction, mu = 0.3: the
+  frictional Newton on the axis-aligned dofs, or in each node's frame (its columns combined and
+  rotated every step: :mod:`sdm_dolfinx.solvers.friction_system`).
 
 The windows of bench/run.py: disc level 5 from 0.02 mm above the foundation (contact from the first
 step, 3 steps); the ball from 4 um above the plane (contact from step 2, 6 steps), levels 3 and 4.
@@ -21,6 +24,7 @@ impact phase), the time spent in the rows' projection, the set-up time.
 
     .venv/bin/python bench/gap_rows.py                  # every case, results/gap_rows.json, a table
     .venv/bin/python bench/gap_rows.py --case disc5     # one case
+    .venv/bin/python bench/gap_rows.py --friction --case disc5 --case ball3   # the frictional variants
     .venv/bin/python bench/gap_rows.py --table          # the table of the recorded results
 """
 import argparse
@@ -49,13 +53,14 @@ def one(case, variant):
     from sdm_dolfinx.obstacles import HalfSpace
     from sdm_dolfinx.problems import ball, disc
     from sdm_dolfinx.run.integrator import Integrator
+    from sdm_dolfinx.contact.friction import make as make_friction
 
     spec = CASES[case]
     comm = MPI.COMM_WORLD
     t0 = time.perf_counter()
     mod = {"disc": disc, "ball": ball}[spec["problem"]]
     p = mod.problem(comm, level=spec["level"], height=spec["height"])
-    if variant == "plane":
+    if variant.startswith("plane"):
         p.lower_bound = None
         p.obstacles = [HalfSpace(np.zeros(len(spec["normal"])), spec["normal"])]
     projection = [0.0]
@@ -68,7 +73,8 @@ def one(case, variant):
         return out
     obstacle_rows.ObstacleRows.rows = timed
     d = Discretisation(p, "P2/P1")
-    integ = Integrator(d, "midpoint", spec["dt"], linear="schur")
+    friction = make_friction("coulomb", mu=0.3) if variant.endswith("coulomb") else None
+    integ = Integrator(d, "midpoint", spec["dt"], linear="schur", friction=friction)
     U, V = d.initial_state()
     V = integ.initial_velocity(V)
     setup = time.perf_counter() - t0
@@ -108,11 +114,13 @@ def table(results):
     lines = ["| case | ranks | dim W^h | active (last step) | contact step, bound (s) | contact step, plane (s) | plane / bound | "
              "projection / plane step | final energy, plane / bound - 1 |",
              "|---|---|---|---|---|---|---|---|---|"]
-    for key in sorted({(r["case"], r["ranks"]) for r in results}):
-        by = {r["variant"]: r for r in results if (r["case"], r["ranks"]) == key}
+    for key in sorted({(r["case"], r["ranks"], r["variant"].partition("-")[2]) for r in results}):
+        by = {r["variant"].partition("-")[0]: r for r in results
+              if (r["case"], r["ranks"], r["variant"].partition("-")[2]) == key}
         if set(by) != {"bound", "plane"}:
             continue
         b, p = by["bound"], by["plane"]
+        key = (key[0] + (f", {key[2]}" if key[2] else ""), key[1])
         steps = sum(1 for a in p["n_active"] if a > 0)
         share = p["projection_s"] / max(sum(p["step_s"]), 1e-300)
         lines.append(f"| {key[0]} | {key[1]} | {b['dim_W']} | {p['n_active'][-1]} | {b['contact_step_s']:.4f} | "
@@ -126,6 +134,7 @@ if __name__ == "__main__":
     ap.add_argument("--case", action="append", choices=sorted(CASES))
     ap.add_argument("--ranks", type=int, default=1)
     ap.add_argument("--table", action="store_true", help="print the table of the recorded results")
+    ap.add_argument("--friction", action="store_true", help="the variants with Coulomb friction (mu = 0.3)")
     ap.add_argument("--one", nargs=2, metavar=("CASE", "VARIANT"), help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.one:
@@ -137,7 +146,7 @@ if __name__ == "__main__":
     results = json.loads(RESULTS.read_text()) if RESULTS.exists() else []
     if not args.table:
         for case in args.case or sorted(CASES):
-            for variant in ("bound", "plane"):
+            for variant in (("bound-coulomb", "plane-coulomb") if args.friction else ("bound", "plane")):
                 rec = run_fresh(case, variant, args.ranks)
                 results = [r for r in results if (r["case"], r["variant"], r["ranks"]) !=
                            (case, variant, args.ranks)] + [rec]
