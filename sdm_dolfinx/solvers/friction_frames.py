@@ -91,11 +91,13 @@ class NodeFrames:
 
     def cartesian(self, tangential):
         """3-D frames: the tangential vectors (m x 2, along each node's t1, t2) as Cartesian ones (m x 3);
-        without frames, or in 2-D, ``tangential`` itself."""
+        without frames, or in 2-D, ``tangential`` itself (before the first step's frames: zeros)."""
         Q = self.system.Q
         tangential = np.asarray(tangential, dtype=float)
-        if not self.frames or Q is None or tangential.ndim == 1:
+        if not self.frames or tangential.ndim == 1:
             return tangential
+        if Q is None:
+            return np.zeros((len(tangential), 3))
         return np.einsum("ik,ikc->ic", tangential, Q[:, 1:, :])
 
     def imposed_gap(self, x):
