@@ -192,6 +192,7 @@ def make_solver(integ, options):
         raise DiscretisationError(str(e)) from None
     ndofs, lb, rows = d.cdofs, d.lb, d.obstacle_rows
     if rows is not None:            # obstacles: each node's Cartesian dofs, its frame given every step
+        rows.require_free(f"friction {f.law} against obstacles")
         ndofs, lb = rows.dofs[:, 0], np.zeros(len(rows.dofs))
         integ.tdofs = rows.dofs[:, 1] if rows.gdim == 2 else np.ascontiguousarray(rows.dofs[:, 1:])
     cls = FrictionalNewtonCone if integ.tdofs.ndim == 2 else FrictionalNewton

@@ -52,7 +52,9 @@ defect D_n is O(gamma dt^2 |u'|^2) (tests/physics/test_nitsche.py checks the ide
 three thetas, and the order of theta = 1's energy error).
 
 gamma = gamma0 M_n / h_T, h_T the diameter of the facet's cell (its vertices' largest distance),
-M_n the problem's normal stiffness modulus: sigma_n of the unit normal strain u = x_c e_c (lambda +
+M_n the problem's normal stiffness modulus: sigma_n of the unit normal strain u = x_c e_c along the
+constrained axis c, also against an obstacle whose normal is another (the same for an isotropic
+material; an anisotropic ``stress`` against a tilted obstacle gets the axis' modulus) (lambda +
 2 mu in plane strain, E for the 1-D rod, the tension of a scalar problem), computed from
 ``stress`` over Gamma_C, so that gamma0 is dimensionless (gamma = gamma0 E / h for the rod, as
 in GetFEM's demo; with lambda + 2 mu the scaling also follows the incompressible limit, where
@@ -268,14 +270,22 @@ class Nitsche:
         return {"contact": self.name, "nitsche_theta": self.theta, "nitsche_gamma0": self.gamma0,
                 "normal_modulus": self.modulus}
 
+    def _fields_at(self, U):
+        """Against obstacles: the normal and bound fields at U if no step has set them yet (the state
+        recorded before the first step; the obstacles are fixed)."""
+        if self.obstacle is not None and not self.obstacle.ready:
+            self.obstacle.update(U, 0.0)
+
     def nodal_forces(self, X):
         """The reported nodal contact forces (the solver's ``lam``) at the state X: int p phi_i ds
         at the owned constrained vertices."""
+        self._fields_at(X)
         self.set_state(X)
         return self.pressure_forces()
 
     def energy(self, U):
         """The contact part of E_theta at the state U (collective)."""
+        self._fields_at(U)
         self.set_state(U)
         return float(self.problem.mesh.comm.allreduce(fem.assemble_scalar(self._E_form), op=MPI.SUM))
 
@@ -309,6 +319,7 @@ class ObstacleField:
         self._un = fem.Function(self.normal.function_space)
         self._x = self.bound.function_space.tabulate_dof_coordinates().T.copy()       # (3, n) with ghosts
         self.owned = owned_size(d.W)
+        self.ready = False                  # the fields have been set (by a step, or at the first state)
 
     def update(self, U, t):
         """n and bound at the state U (a PETSc vector of W^h) at time t (collective: ghosts included)."""
@@ -322,6 +333,7 @@ class ObstacleField:
         n = nrm[:self.gdim].T
         self.normal.x.array[:] = n.reshape(-1)
         self.bound.x.array[:] = np.einsum("ik,ik->i", n, un) - phi
+        self.ready = True
 
 
 def make(context, options):

@@ -238,6 +238,16 @@ def static_displacement(d, friction=None, contact="exact"):
         raise StaticStartError(f"{who} is the exact Signorini equilibrium, and contact {contact!r} penetrates the "
                                f"obstacle at rest: start from a u0 of your own (or contact 'exact')")
     frame = ObstacleFrame(d) if d.obstacle_rows is not None else None
+    try:
+        return _static(d, friction, who, frame)
+    finally:
+        if frame is not None:
+            frame.destroy()
+
+
+def _static(d, friction, who, frame):  # long: the active-set loop of static_displacement, as one piece
+    """:func:`static_displacement`'s loop (``frame``: against obstacles, the nodes' frames, or None)."""
+    p, comm = d.problem, d.comm
     law = getattr(friction, "law", "none") if friction is not None else "none"
     L = _load_at_zero(d)
     A, lb, mass_mult = (d.A, d.lb, d.mass_mult) if frame is None else frame.start(L)   # obstacles: framed
@@ -300,7 +310,7 @@ def static_displacement(d, friction=None, contact="exact"):
         raise StaticStartError(f"{who}: the static contact problem found no active set in {MAX_ITER} changes")
     r.destroy(), L.destroy()
     if frame is not None:
-        frame.finish(U)
+        frame.from_frame(U)
     return U
 
 

@@ -12,6 +12,7 @@ def gap_solver(d, K, vi_solver="ssn", symmetric_positive=True, options=None, fac
     matrix ``K``; the weighted rows' g is set (obstacle rows: before every step, by the caller)."""
     rows = d.obstacle_rows
     if vi_solver != "ssn":
+        rows.require_free(f"vi_solver {vi_solver}")
         solver = FramedSnesVI(K, rows.dofs, d.problem.constraint_component or 0, snes_type=vi_solver,
                               symmetric_positive=symmetric_positive, options=options)
         return solver, "lu", "obstacles: SNES VI in the nodes' frames (LU per iteration)"

@@ -143,6 +143,15 @@ class ObstacleRows:
         self._y: Optional[Array] = None
         self._t: tuple[float, float] = (0.0, 0.0)
 
+    def require_free(self, what: str) -> None:
+        """Refuse (one line, collective) ``what`` where a constrained node has a Dirichlet component: the
+        nodes' frames would mix it into the normal and tangential unknowns. Unreachable today
+        (``dirichlet_facets`` take such a node out of the constraint, Dirichlet parts at constrained
+        nodes are refused); kept so that a later change cannot make the frames silently wrong."""
+        if not self.comm.allreduce(bool(np.all(self.free)), op=MPI.LAND):
+            raise DiscretisationError(f"{what} works in each constrained node's frame, and a constrained node has a "
+                                      f"Dirichlet component: not built")
+
     # ---------------------------------------------------------------- positions and gaps
     def _at(self, x: Array, dofs: Array, u: Array) -> Array:
         """The current positions (3, n) of the nodes at reference ``x`` whose dofs are ``dofs``."""

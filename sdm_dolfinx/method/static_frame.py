@@ -16,6 +16,7 @@ class ObstacleFrame:
 
     def __init__(self, d):
         rows, comp = d.obstacle_rows, d.problem.constraint_component or 0
+        rows.require_free("u0 = 'equilibrium' against obstacles")
         self.d, self.dofs, k = d, rows.dofs, rows.gdim
         phi, nrm, _ = nearest(rows.obstacles, rows.x, 0.0)
         Q = frames_of(np.ascontiguousarray(nrm[:k].T)) if len(phi) else np.zeros((0, k, k))
@@ -50,11 +51,6 @@ class ObstacleFrame:
         """(A, lb, mass_mult) of the static problem in the frame; L := T^T L in place."""
         self.to_frame(L)
         return self.A, self.lb, self.mass_mult
-
-    def finish(self, U):
-        """U := T U (the static solution, back from the frame); frees the frame's matrix."""
-        self.from_frame(U)
-        self.destroy()
 
     def mass_mult(self, x, y):
         """y = T^T M T x."""

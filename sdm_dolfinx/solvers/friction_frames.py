@@ -46,16 +46,15 @@ def at_component(Q, comp):
 
 def rotation(A, dofs, Q, T=None):
     """The PETSc matrix T (A's layout) with U = T Y: U_i = Q_i^T Y_i at the nodes whose owned local dofs
-    are ``dofs`` (m, k), the identity elsewhere; ``T`` (an earlier result) is refilled in place."""
+    are ``dofs`` (m, k), the identity elsewhere; ``T`` (an earlier result for the same dofs) gets the new
+    node blocks in place (every entry of a block is set: the block's pattern is dense)."""
     r0, nloc = A.getOwnershipRange()[0], A.getLocalSize()[0]
-    if T is None:
+    if T is None:                                   # the identity off the nodes, once
         T = PETSc.Mat().createAIJ(A.getSizes(), nnz=Q.shape[1] if len(Q) else 1, comm=A.getComm())
-    else:
-        T.zeroEntries()
-    off = np.ones(nloc, dtype=bool)
-    off[np.asarray(dofs).reshape(-1)] = False
-    for i in np.flatnonzero(off):
-        T.setValue(r0 + i, r0 + i, 1.0)
+        off = np.ones(nloc, dtype=bool)
+        off[np.asarray(dofs).reshape(-1)] = False
+        for i in np.flatnonzero(off):
+            T.setValue(r0 + i, r0 + i, 1.0)
     for i in range(len(dofs)):                      # U_c = sum_k Q_kc Y_k at the node's dofs
         g = (r0 + np.asarray(dofs[i])).astype(PETSc.IntType)
         T.setValues(g, g, np.ascontiguousarray(Q[i].T, dtype=PETSc.ScalarType))

@@ -314,7 +314,10 @@ class GapNewton:
                                                   else MatrixRows(K, self.fac, G, max_columns))
         m = len(self.rows.g)
         if stiffness is not None:
-            self.rows.compliance = 1.0 / np.broadcast_to(np.asarray(stiffness, dtype=float), (m,))
+            k = np.broadcast_to(np.asarray(stiffness, dtype=float), (m,))
+            if not self.comm.allreduce(bool(np.all(np.isfinite(k) & (k > 0.0))), op=MPI.LAND):
+                raise ValueError("the penalty's stiffnesses must be finite and > 0")
+            self.rows.compliance = 1.0 / k
         self.num_constraints = self.comm.allreduce(m, op=MPI.SUM)
         self.lam, self.active = np.zeros(m), np.zeros(m, dtype=bool)
         # the Alart–Curnier scale r: the mean of K's diagonal at the dofs the rows read

@@ -107,3 +107,23 @@ def test_a_treatment_refuses_a_moving_obstacle(contact):
     p.obstacles = [HalfSpace((0.0, 0.0), (0.0, 1.0), motion=lambda t: (0.0, 0.1 * t))]
     with pytest.raises(SdmError, match=f"that move, which contact '{contact}'"):
         simulate(p, pair="P1+/P0", dt=1e-4, T=1e-3, contact=contact)
+
+
+def test_nitsche_against_an_obstacle_reports_the_first_states_contact_energy():
+    """Nitsche's contact energy theta/2 int ([P]_-^2 - sigma_n^2) / gamma is not zero for a stressed body
+    off the obstacle (-sigma_n^2). The block lifted by 0.01 mm and compressed (u0 = (0, 0.01 - 1e-3 y)),
+    rotated onto the 25-degree plane, against the axis-aligned one under tilted gravity: the same contact
+    energy at every recorded state, the first included (it was 0 there: the obstacle's fields are set
+    by the steps, and the first state is recorded before the first step)."""
+    p0, R = _block_on_slope(25.0, False)
+    p1, _ = _block_on_slope(25.0, True)
+    p0.u0 = lambda x: np.vstack([np.zeros(x.shape[1]), 0.01 - 1e-3 * x[1]])       # noqa: E731
+
+    def rotated(x):
+        y = R.T @ x[:2]
+        return R @ np.vstack([np.zeros(x.shape[1]), 0.01 - 1e-3 * y[1]])
+    p1.u0 = rotated
+    kw = dict(pair="P1+/P0", dt=2e-5, T=1e-4, contact="nitsche")
+    s0, s1 = simulate(p0, **kw).timeseries, simulate(p1, **kw).timeseries
+    assert s0["contact_energy"][0] < 0
+    assert _scale_diff(s0["contact_energy"], s1["contact_energy"]) <= 1e-8
