@@ -13,8 +13,14 @@ contact is frictionless, so the contact force passes through the disc's centre, 
 turn, and its centre moves on the circle of radius L = Rb - r: a pendulum of length L, whose
 small-oscillation period is
 
-    T0 = 2 pi sqrt(L / g)      (frictionless; rolling without slipping would give 2 pi sqrt(3 L / (2 g)),
-                                which needs friction against obstacles: not built yet).
+    T0 = 2 pi sqrt(L / g)      (frictionless; a rigid disc rolling without slipping would give
+                                2 pi sqrt(3 L / (2 g))).
+
+With friction (``--friction coulomb --mu 0.5``) the disc rolls, and turns: the linear model is then
+valid only for small rotations. Its rotation field u = w x r is strain-free but moves the boundary to
+the radius r sqrt(1 + w^2): at the default theta0 the disc turns by about 0.6 rad, grows by 1.7 mm in
+the model and gains energy; at theta0 = 1 degree the period is the linear model's
+2 pi sqrt(3 L / (2 g (1 + L / r))) (``demos/bowl.py --rolling``, docs/contact.md), not the rigid one.
 
 Every boundary vertex of the disc is constrained: the rows are linearised at the current
 configuration every step (sdm_dolfinx/method/obstacle_rows.py), so the contact point moves
