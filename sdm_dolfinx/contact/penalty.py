@@ -49,7 +49,6 @@ from petsc4py import PETSc
 import numpy as np
 
 from sdm_dolfinx.method.errors import DiscretisationError
-from sdm_dolfinx.method.obstacle_rows import nearest
 from sdm_dolfinx.params import Param
 from sdm_dolfinx.solvers import PenaltyNewton
 from sdm_dolfinx.method.gap_solver import gap_solver
@@ -94,11 +93,10 @@ def _normal_stiffness(d):
     block, n_i the nearest obstacle's normal at the reference node, t = 0): the axis-aligned bound's
     A_cc for n = e_c, and unchanged when the body and the obstacle are rotated together."""
     rows = d.obstacle_rows
-    _, nrm, _ = nearest(rows.obstacles, rows.x, 0.0)
+    _, normals = rows.reference()
     r0, total = d.A.getOwnershipRange()[0], 0.0
-    for i, dofs in enumerate(rows.dofs):
+    for dofs, n in zip(rows.dofs, normals):
         g = (r0 + dofs).astype(PETSc.IntType)
-        n = nrm[:rows.gdim, i]
         total += float(n @ d.A.getValues(g, g) @ n)
     return total
 

@@ -153,6 +153,12 @@ class ObstacleRows:
                                       f"Dirichlet component: not built")
 
     # ---------------------------------------------------------------- positions and gaps
+    def reference(self) -> tuple[Array, Array]:
+        """(phi (m,), unit normals (m, gdim)) of the nearest obstacle at this rank's constrained nodes in
+        the reference configuration, at t = 0 (the static start's rows; the penalty's stiffness)."""
+        phi, nrm, _ = nearest(self.obstacles, self.x, 0.0)
+        return phi, np.ascontiguousarray(nrm[:self.gdim].T)
+
     def _at(self, x: Array, dofs: Array, u: Array) -> Array:
         """The current positions (3, n) of the nodes at reference ``x`` whose dofs are ``dofs``."""
         y = np.array(x, dtype=float, copy=True)

@@ -4,8 +4,7 @@ orthonormal and its row ``constraint_component`` the nearest obstacle's normal a
 (t = 0), so that each node's row n_i . U_i >= -phi(a_i) is the bound of one unknown Y_c."""
 import numpy as np
 
-from sdm_dolfinx.method.obstacle_rows import nearest
-from sdm_dolfinx.solvers.friction_frames import at_component, frames_of, rotation
+from sdm_dolfinx.solvers.friction_frames import at_component, frames_of, from_frame, rotation, to_frame
 
 
 class ObstacleFrame:
@@ -18,8 +17,8 @@ class ObstacleFrame:
         rows, comp = d.obstacle_rows, d.problem.constraint_component or 0
         rows.require_free("u0 = 'equilibrium' against obstacles")
         self.d, self.dofs, k = d, rows.dofs, rows.gdim
-        phi, nrm, _ = nearest(rows.obstacles, rows.x, 0.0)
-        Q = frames_of(np.ascontiguousarray(nrm[:k].T)) if len(phi) else np.zeros((0, k, k))
+        phi, normals = rows.reference()
+        Q = frames_of(normals) if len(phi) else np.zeros((0, k, k))
         self.Q = at_component(Q, comp)
         self.lb = -phi
         A = d.A
@@ -29,23 +28,16 @@ class ObstacleFrame:
         self._tmp = A.createVecLeft()
 
     def to_frame_rows(self, X):
-        """T^T X for owned rows X (n x j)."""
-        Y = np.array(X, copy=True)
-        if len(self.dofs):
-            Y[self.dofs] = np.einsum("ikc,icj->ikj", self.Q, X[self.dofs])
-        return Y
+        """T^T X for owned rows X (n x j), a copy."""
+        return to_frame(np.array(X, copy=True), self.dofs, self.Q)
 
     def to_frame(self, v):
         """v := T^T v (a PETSc vector of W)."""
-        a = v.array
-        if len(self.dofs):
-            a[self.dofs] = np.einsum("ikc,ic->ik", self.Q, a[self.dofs])
+        to_frame(v.array, self.dofs, self.Q)
 
     def from_frame(self, v):
         """v := T v."""
-        a = v.array
-        if len(self.dofs):
-            a[self.dofs] = np.einsum("ikc,ik->ic", self.Q, a[self.dofs])
+        from_frame(v.array, self.dofs, self.Q)
 
     def start(self, L):
         """(A, lb, mass_mult) of the static problem in the frame; L := T^T L in place."""

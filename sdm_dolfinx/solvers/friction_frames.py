@@ -44,6 +44,22 @@ def at_component(Q, comp):
     return out
 
 
+def to_frame(a, dofs, Q):
+    """a := T^T a in place, T the rotation of :func:`rotation`: a_i := Q_i a_i at the nodes whose owned
+    local rows are ``dofs`` (m, k); ``a`` an owned array, a vector or one row of a matrix per dof.
+    Returns ``a``."""
+    if len(dofs):
+        a[dofs] = np.einsum("ikc,ic...->ik...", Q, a[dofs])
+    return a
+
+
+def from_frame(a, dofs, Q):
+    """a := T a in place (the inverse of :func:`to_frame`: a_i := Q_i^T a_i). Returns ``a``."""
+    if len(dofs):
+        a[dofs] = np.einsum("ikc,ik...->ic...", Q, a[dofs])
+    return a
+
+
 def rotation(A, dofs, Q, T=None):
     """The PETSc matrix T (A's layout) with U = T Y: U_i = Q_i^T Y_i at the nodes whose owned local dofs
     are ``dofs`` (m, k), the identity elsewhere; ``T`` (an earlier result for the same dofs) gets the new

@@ -21,7 +21,7 @@ from petsc4py import PETSc
 import numpy as np
 import numpy.typing as npt
 
-from sdm_dolfinx.solvers.friction_frames import at_component, frames_of, rotation
+from sdm_dolfinx.solvers.friction_frames import at_component, frames_of, from_frame, rotation, to_frame
 from sdm_dolfinx.solvers.snes_vi import SnesVI
 
 
@@ -69,14 +69,6 @@ class FramedSnesVI:
         rotation(self.K, self.dofs, self.Q, self.T)
         self.K.PtAP(self.T, result=self.KY)
 
-    def _to_frame(self, a: np.ndarray) -> None:
-        if len(self.dofs):
-            a[self.dofs] = np.einsum("ikc,ic->ik", self.Q, a[self.dofs])
-
-    def _from_frame(self, a: np.ndarray) -> None:
-        if len(self.dofs):
-            a[self.dofs] = np.einsum("ikc,ik->ic", self.Q, a[self.dofs])
-
     def row_values(self, x: np.ndarray) -> np.ndarray:
         """n_i . x_i at this rank's rows for the owned array ``x``."""
         return np.einsum("ik,ik->i", self.Q[:, self.comp], x[self.dofs]) if len(self.g) else np.zeros(0)
@@ -88,12 +80,12 @@ class FramedSnesVI:
     def solve(self, b: PETSc.Vec, x: PETSc.Vec) -> dict[str, Any]:
         """Solve the step for the right-hand side b into x (x holds the initial guess)."""
         b.copy(self._bY)
-        self._to_frame(self._bY.array)
+        to_frame(self._bY.array, self.dofs, self.Q)
         x.copy(self._xY)
-        self._to_frame(self._xY.array)
+        to_frame(self._xY.array, self.dofs, self.Q)
         info = self.inner.solve(self._bY, self._xY)
         self._xY.copy(x)
-        self._from_frame(x.array)
+        from_frame(x.array, self.dofs, self.Q)
         self.lam = np.asarray(self.inner.lam, dtype=float)
         self.active = self.lam > 0.0
         return info
