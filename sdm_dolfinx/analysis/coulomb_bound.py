@@ -41,9 +41,9 @@ def coulomb_bound(problem, pair, dt, scheme="midpoint", mass=None, samples=SAMPL
         raise DiscretisationError(f"--coulomb-bound is derived for 2-D problems (one tangential direction), not "
                                   f"for problem {problem.name!r} (3 components: a disc-shaped friction cone)")
     if getattr(problem, "obstacles", None):
-        raise DiscretisationError(f"--coulomb-bound is derived for the axis-aligned bound (the normal one component), "
-                                  f"not for problem {problem.name!r}'s obstacles (each node's normal its own): not "
-                                  f"measured yet")
+        raise DiscretisationError(f"--coulomb-bound is derived for the axis-aligned bound (the normal along one axis), "
+                                  f"not for the obstacles of problem {problem.name!r} (each node's normal its own): "
+                                  f"not measured yet")
     d = Discretisation(problem, pair, mass)
     integ = Integrator(d, scheme, dt, friction=Friction("coulomb", mu=0.0))
     try:
