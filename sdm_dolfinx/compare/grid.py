@@ -25,6 +25,7 @@ from sdm_dolfinx.mpiutil import atomic_write_text, json_text
 from sdm_dolfinx.post import metrics as cm
 from sdm_dolfinx.problems import ProblemInputError, get as get_problem
 from sdm_dolfinx.run import Interrupted, RunInputError, grouped, num_steps, plan, simulate
+from sdm_dolfinx.run.linear_range import LinearRangeWarning
 from sdm_dolfinx.run.result import BoundaryGapWarning
 from sdm_dolfinx.run import SolverSetupError
 
@@ -165,8 +166,9 @@ def run_job(job, problem_name, problem, truth_of, comm=COMM, exact=None, against
     observer = cm.FieldErrors(exact)
     t0 = time.perf_counter()
     try:
-        with warnings.catch_warnings():         # the penetration is a metric: no warning line per run
-            warnings.simplefilter("ignore", BoundaryGapWarning)
+        with warnings.catch_warnings():         # the penetration is a metric: no warning line per run; the
+            warnings.simplefilter("ignore", BoundaryGapWarning)     # linear range is the problem's, for each method
+            warnings.simplefilter("ignore", LinearRangeWarning)
             result = simulate(problem, out=job.folder, observe=observer, dt=job.dt, T=job.T,
                               write_every=job.write_every, **_simulate_options(job))
     except (DiscretisationError, ValueError, ProblemInputError, SolverSetupError) as e:

@@ -329,7 +329,7 @@ class _Loop:
             self.lock = None
 
     def finish(self):
-        self.series.warn_sink()
+        self.series.warn_end()
         gi, ge = self.gap_imposed[self.first:], self.gap_end[self.first:]
         self.info.update(status="finished", wall_time=time.perf_counter() - self.wall0, setup_time=self.setup_time,
                          newton_its_total=int(self.series.data["newton_its"].sum()),

@@ -1,7 +1,6 @@
 """What a run returns (:class:`Result`) and the time series it records (:class:`TimeSeries`)."""
 from __future__ import annotations
 
-import warnings
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Optional, Protocol
@@ -14,6 +13,9 @@ import numpy.typing as npt
 from sdm_dolfinx.contact import friction as _friction
 from sdm_dolfinx.errors import StepError
 from sdm_dolfinx.method import gaps, moving_bound
+from sdm_dolfinx.run.boundary_sink import (BOUNDARY_GAP, BOUNDARY_GAP_FLOOR, BOUNDARY_GAP_TOL,  # noqa: F401 (public here)
+                                           BOUNDARY_SINK_RTOL, BoundaryGapWarning, BoundarySink)
+from sdm_dolfinx.run.linear_range import LinearRange
 
 if TYPE_CHECKING:
     from dolfinx import fem
@@ -71,33 +73,11 @@ def dirichlet_columns(problem: Problem) -> tuple[str, ...]:
 #: the column of a run whose contact is not exact (penalty, Nitsche): the energy stored in the
 #: contact term at U^{n+1} (``Integrator.contact_energy``); ``energy`` includes it
 CONTACT_ENERGY = "contact_energy"
-#: the column added when the constrained boundary has dofs: min over every dof of W^h on it (P2 mid-edge
-#: nodes included) of U_c - bound at the end of the step (the constraint (13) holds at vertices only)
-BOUNDARY_GAP = "gap_min_boundary"
-#: at the end of a run, warn (once) when a dof of the constrained boundary went below the bound by more
-#: than the constrained vertices did (the midpoint scheme's own O(dt) dip of U^{n+1}) plus a tolerance:
-#: the smaller of BOUNDARY_GAP_TOL times the diameter of the constrained boundary (the diagonal of its
-#: bounding box) and BOUNDARY_SINK_RTOL times the run's displacement scale (the largest spread max - min
-#: of the bounded component over the body during the run, :func:`~sdm_dolfinx.method.gaps.displacement_spread`),
-#: and at least BOUNDARY_GAP_FLOOR times the diameter (round-off). The displacement scale makes a sink that
-#: matters to the run warn however small the body's motion (a P2 face pushed by 10 um sinks 1.7 um between
-#: its vertices: 17 %, far below 1e-3 x a 20 mm boundary); the whole run's scale, not the scale so far,
-#: keeps the first instants of an impact (a sink against a deformation that has hardly begun) from
-#: deciding alone
-BOUNDARY_GAP_TOL = 1e-3
-BOUNDARY_SINK_RTOL = 1e-2
-BOUNDARY_GAP_FLOOR = 1e-9
 
 #: one row of the time series: column -> value (and ``linear_its_total``)
 Row = dict[str, float]
 #: ``simulate``'s ``on_step(step, row)``, called after every step; a true return requests a stop
 OnStep = Callable[[int, Row], object]
-
-
-class BoundaryGapWarning(UserWarning):
-    """The constrained boundary sinks below the bound between constrained vertices (P2 mid-edge
-    nodes): one line on rank 0, once per run; silence it with ``warnings.simplefilter("ignore",
-    BoundaryGapWarning)``."""
 
 
 #: |J^0| below this times the largest energy in play is round-off of it (:func:`energy_scale`)
@@ -168,15 +148,11 @@ class TimeSeries:
                                          + boundary + dirichlet + obstacle)
         self.data = {c: np.zeros(nsteps + 1) for c in self.columns}
         self.comm = problem.mesh.comm
-        if boundary:
-            lo, hi = np.empty(3), np.empty(3)
-            self.comm.Allreduce(np.ascontiguousarray(d.bx.min(axis=1, initial=np.inf)), lo, op=MPI.MIN)
-            self.comm.Allreduce(np.ascontiguousarray(d.bx.max(axis=1, initial=-np.inf)), hi, op=MPI.MAX)
-            self.diameter = float(np.linalg.norm(hi - lo))
-        self.spread = 0.0                   # the run's displacement scale so far (BOUNDARY_SINK_RTOL)
-        #: the deepest sink of the boundary below the constrained vertices so far: (sink, step, t, where)
-        self.sink: tuple[float, int, float, Optional[npt.NDArray[np.float64]]] = (0.0, 0, 0.0, None)
-        self.warned = False
+        #: the deepest sink of the constrained boundary (:mod:`.boundary_sink`), or None without one
+        self.boundary_sink = BoundarySink(d) if boundary else None
+        #: the largest cell rotation and strain of the run (a vector displacement in 2-D or 3-D), or None
+        self.linear_range = (LinearRange(d.W) if LinearRange.applies(tuple(problem.shape), problem.mesh.geometry.dim)
+                             else None)
 
     def record(self, n: int, t: float, U: PETSc.Vec, V: PETSc.Vec, lam: npt.NDArray[np.float64], its: int,
                n_active: int, step: Optional[Mapping[str, Any]] = None, *, linear_its_total: int,
@@ -215,7 +191,9 @@ class TimeSeries:
             row["obstacle_probe"] = self.cprobe.at(self.discretisation.lb)
         if BOUNDARY_GAP in self.columns:
             row[BOUNDARY_GAP] = gaps.boundary_gap(self.discretisation, U.array_r, t)
-            self._track_sink(n, t, U, row[BOUNDARY_GAP])
+            self.boundary_sink.track(n, t, U, row[BOUNDARY_GAP])
+        if self.linear_range is not None:
+            self.linear_range.watch(n, t, U)
         row["linear_its_total"] = linear_its_total
         if not np.isfinite(row["energy"]):
             raise StepError(f"step {n} (t = {t:.6g}): the energy is not finite ({row['energy']})")
@@ -241,57 +219,24 @@ class TimeSeries:
         row.update(zip(forces, map(float, force)))
         row.update(zip(slips, map(float, at)))
 
-    def _track_sink(self, n: int, t: float, U: PETSc.Vec, gap: float) -> None:
-        """Keep the run's displacement spread and the deepest sink of the constrained boundary below
-        the constrained vertices (with where it was: one more collective when it deepens)."""
-        d = self.discretisation
-        self.spread = max(self.spread, gaps.displacement_spread(d, U.array_r))
-        sink = min(gaps.vertex_gap(d, U.array_r, t), 0.0) - gap
-        if sink > self.sink[0]:
-            self.sink = (sink, n, t, gaps.boundary_gap_where(d, U.array_r, t))
-
-    @property
-    def boundary_tol(self) -> float:
-        """How far the constrained boundary may sink below the constrained vertices before
-        :meth:`warn_sink` warns (:data:`BOUNDARY_GAP_TOL`, :data:`BOUNDARY_SINK_RTOL`)."""
-        return max(BOUNDARY_GAP_FLOOR * self.diameter,
-                   min(BOUNDARY_GAP_TOL * self.diameter, BOUNDARY_SINK_RTOL * self.spread))
-
-    def warn_sink(self) -> None:
-        """A :class:`BoundaryGapWarning` on rank 0, once, when the constrained boundary sank below the
-        bound between the constrained vertices by more than :attr:`boundary_tol` in the steps recorded
-        (a restarted run: those since the restart). Called at the end of the run (collective)."""
-        sink, n, t, x = self.sink
-        if self.warned or BOUNDARY_GAP not in self.columns or sink <= self.boundary_tol or x is None:
-            return
-        self.warned = True
-        if self.comm.rank == 0:
-            where = ", ".join(f"{c:.6g}" for c in x)
-            share = f"{sink / self.spread:.1%}" if self.spread else "all"
-            # warn_explicit with no source file: one line ("sdm_dolfinx:0: BoundaryGapWarning: ...")
-            warnings.warn_explicit(
-                f"step {n} (t = {t:.6g}): the constrained boundary sank {sink:.3g} below its constrained vertices "
-                f"at ({where}), {share} of the run's displacement spread {self.spread:.3g} (tolerance "
-                f"{self.boundary_tol:.3g}; the deepest of the run); {self._remedy()}; every step's minimum "
-                f"is in the column {BOUNDARY_GAP}", BoundaryGapWarning, "sdm_dolfinx", 0)
-
-    def _remedy(self) -> str:
-        """Where the run's constraint holds, and the options that hold the face between the vertices."""
-        if getattr(self.discretisation, "weighted_rows", None) is not None:
-            return ("the weighted gap holds the face on average between its vertices: constrain='nodes' "
-                    "(--constrain nodes) holds every node of it")
-        if getattr(self.discretisation, "obstacle_rows", None) is not None:
-            return ("the obstacles hold the constrained vertices only: constrain='nodes' (--constrain nodes) holds "
-                    "every node of the face")
-        return ("the constraint holds at vertices only (eq. (13)): constrain='weighted' (--constrain weighted) holds "
-                "the face between them, constrain='nodes' (--constrain nodes) at every node")
+    def warn_end(self) -> None:
+        """The run's end-of-run warnings (collective): the boundary's sink (:mod:`.boundary_sink`) and a
+        rotation or strain beyond the linear model's range (:mod:`.linear_range`)."""
+        if self.boundary_sink is not None:
+            self.boundary_sink.warn()
+        if self.linear_range is not None:
+            self.linear_range.warn()
 
     def summary(self, first: int = 0) -> dict[str, float]:
         """What ``run.json`` gets from the time series of steps ``first``+1.. (the minimum of
-        :data:`BOUNDARY_GAP` over the run, when the column exists)."""
-        if BOUNDARY_GAP not in self.columns:
-            return {}
-        return {"min_gap_boundary": float(np.min(self.data[BOUNDARY_GAP][first + 1:], initial=np.inf))}
+        :data:`BOUNDARY_GAP` over the run, when the column exists) and the largest cell rotation and
+        strain of the steps recorded (a vector problem in 2-D or 3-D: :mod:`.linear_range`)."""
+        out = {}
+        if BOUNDARY_GAP in self.columns:
+            out["min_gap_boundary"] = float(np.min(self.data[BOUNDARY_GAP][first + 1:], initial=np.inf))
+        if self.linear_range is not None:
+            out.update(zip(("max_cell_rotation", "max_cell_strain"), map(float, self.linear_range.largest)))
+        return out
 
     def load_rows(self, lines: Iterable[str]) -> None:
         """Fill rows from CSV lines (``step,...`` in the column order; a restart's history)."""
