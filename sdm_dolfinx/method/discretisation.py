@@ -336,6 +336,11 @@ class Discretisation:
         comm = self.comm
         if self.obstacle_rows is not None:
             gap, scale = self.obstacle_rows.phi(U.array_r, 0.0), self.obstacle_rows.size
+        elif self.weighted_rows is not None:            # the rows G U >= g, one per constrained vertex
+            Gu = self.weighted_rows.G.createVecLeft()
+            self.weighted_rows.G.mult(U, Gu)
+            gap, scale = Gu.array_r - self.weighted_rows.g, None
+            Gu.destroy()
         else:
             gap = U.array[self.cdofs] - self.lb
             scale = None
@@ -351,9 +356,10 @@ class Discretisation:
         where_to = "inside an obstacle" if self.obstacle_rows is not None else "below the bound"
         raise DiscretisationError(
             f"problem {self.problem.name!r}: the initial displacement is {where_to} at {count} constrained "
-            f"{'vertices' if self.constrain == 'vertices' else 'nodes'}, by up to {-worst:.3g} at ({where}) (tolerance "
+            f"{'nodes' if self.constrain == 'nodes' else 'vertices'}, by up to {-worst:.3g} at ({where}) (tolerance "
             f"{tol:.1e}); u0 must satisfy the constraint"
-            + ("" if self.constrain == "vertices" else " at every constrained node (constrain nodes)"))
+            + {"vertices": "", "nodes": " at every constrained node (constrain nodes)",
+               "weighted": " averaged around every constrained vertex (constrain weighted)"}[self.constrain])
 
     def rigid_vector(self, component):
         """The vector of W that represents the constant unit field in ``component``."""

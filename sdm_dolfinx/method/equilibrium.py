@@ -33,6 +33,9 @@ rotation, the identity off the constrained nodes; friction: the tangential unkno
 The run's first step linearises its rows at U_s instead: they differ by O(|U_s,t|^2 / R) on an
 obstacle of curvature radius R (0 on a plane: there the run stays at U_s to round-off).
 
+**With the weighted gap** (``constrain="weighted"``, frictionless) a row reads several nodes: the active
+rows are held by multipliers instead of eliminated dofs (:mod:`.static_rows`, the same loop).
+
 A rigid motion that A does not resist (the translations and rotations for a vector u, the
 constant for a scalar u, where ``A r = 0``) and that neither the active contact, the sticking
 dofs nor the Dirichlet data fix is a free motion of the body: the static problem then has a
@@ -47,28 +50,14 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 import numpy as np
-from dolfinx import fem
 
-from sdm_dolfinx import compat
-from sdm_dolfinx.method.errors import DiscretisationError
+from sdm_dolfinx.method import static_rows
 from sdm_dolfinx.method.static_frame import ObstacleFrame
+from sdm_dolfinx.method.static_parts import (MAX_ITER, RESIDUAL_TOL, RTOL, StaticStartError,  # noqa: F401 (public)
+                                             free_motions, kernel_basis, load_at_zero, no_rigid_displacement,
+                                             pin_dofs)
 from sdm_dolfinx.problems.base import EQUILIBRIUM as EQUILIBRIUM  # noqa: F401  (the value of u0 asking for it)
 from sdm_dolfinx.problems.base import label
-#: the most active-set changes of the loop
-MAX_ITER = 100
-#: a reaction below -RTOL times the load's size pulls (released); a gap below -RTOL times the mesh's
-#: size penetrates (added); the cone and the free motions' load are checked at this relative size too
-RTOL = 1e-10
-#: a rigid motion r is in A's kernel when |A r|_inf <= KERNEL_TOL |A|_inf |r|_inf
-KERNEL_TOL = 1e-9
-#: a rigid motion is free when the unit-norm combination's squared norm on the fixed dofs is below this
-FREE_TOL = 1e-12
-#: the free dofs' residual |A U - L|_inf must be below this times |L|_inf (else A is singular there)
-RESIDUAL_TOL = 1e-8
-
-
-class StaticStartError(DiscretisationError):
-    """``u0 = "equilibrium"`` where the static problem has no (unique) solution: one line, exit 2."""
 
 
 def initial_displacement(d, u0, friction=None, contact="exact"):
@@ -76,106 +65,16 @@ def initial_displacement(d, u0, friction=None, contact="exact"):
     callable, a Function; a built-in equilibrium start's ``for_constraint(kind)`` for the run's kind), or
     ``"equilibrium"``: :func:`static_displacement` with the run's ``friction`` and ``contact``. Collective."""
     p = d.problem
-    if not isinstance(p.u0, str):          # validated: a string is EQUILIBRIUM
-        u0.interpolate(getattr(p.u0, "for_constraint", lambda kind: p.u0)(d.constrain))
+    start = p.u0
+    if not isinstance(start, str):          # validated: a string is EQUILIBRIUM
+        start = getattr(start, "for_constraint", lambda kind: start)(d.constrain)
+    if not isinstance(start, str):          # a built-in start's own solution, or the run's (EQUILIBRIUM)
+        u0.interpolate(start)
         return
-    if getattr(d, "weighted_rows", None) is not None:
-        raise DiscretisationError(f"problem {p.name!r}: u0 = 'equilibrium' with constrain 'weighted' is not built "
-                                  f"yet: start from a displacement or a Function (u0; a built-in problem: start = "
-                                  f"rest)")
     Us = static_displacement(d, friction, contact)
     u0.x.array[:len(Us.array_r)] = Us.array_r          # the owned entries: the same layout
     u0.x.scatter_forward()
     Us.destroy()
-
-
-def _rigid_modes(d):
-    """[(name, vector of W)] of the rigid motions of the problem's unknown: translations and rotations
-    (about the mesh's centre) of a vector u of the mesh's dimension, the translations of another vector,
-    the constant of a scalar u."""
-    p, msh = d.problem, d.problem.mesh
-    shape = tuple(p.shape)
-    if not shape:
-        return [("the constant", d.rigid_vector(0))]
-    n, axes = shape[0], "xyz"
-    modes = [(f"the translation along {axes[c] if c < 3 else c}", d.rigid_vector(c)) for c in range(n)]
-    gdim = msh.geometry.dim
-    if n != gdim or gdim < 2:
-        return modes
-    comm = msh.comm
-    x = msh.geometry.x[:, :gdim]
-    lo, hi = x.min(axis=0) if len(x) else np.full(gdim, np.inf), x.max(axis=0) if len(x) else np.full(gdim, -np.inf)
-    comm.Allreduce(MPI.IN_PLACE, lo, op=MPI.MIN)
-    comm.Allreduce(MPI.IN_PLACE, hi, op=MPI.MAX)
-    c = 0.5 * (lo + hi)
-    planes = [(0, 1, "z")] if gdim == 2 else [(1, 2, "x"), (2, 0, "y"), (0, 1, "z")]
-    for i, j, about in planes:
-        def rotation(x, i=i, j=j):
-            v = np.zeros((gdim, x.shape[1]))
-            v[i], v[j] = -(x[j] - c[j]), x[i] - c[i]
-            return v
-        f = fem.Function(d.W)
-        f.interpolate(rotation)
-        modes.append((f"the rotation about {about}", compat.petsc_vec(f).copy()))
-    return modes
-
-
-def _kernel(d, modes):
-    """The rigid motions A does not resist (A r = 0 to round-off): [(name, r)]."""
-    norm_a = d.A.norm(PETSc.NormType.INFINITY)
-    out, y = [], d.A.createVecLeft()
-    for name, r in modes:
-        d.A.mult(r, y)
-        if y.norm(PETSc.NormType.INFINITY) <= KERNEL_TOL * norm_a * r.norm(PETSc.NormType.INFINITY):
-            out.append((name, r))
-        else:
-            r.destroy()
-    y.destroy()
-    return out
-
-
-def _kernel_basis(d, nloc, frame=None):
-    """(R: the rigid motions in A's kernel as unit columns, owned rows (in the ``frame``: T^T R); their
-    names)."""
-    modes = _kernel(d, _rigid_modes(d))
-    R = np.column_stack([r.array for _, r in modes]) if modes else np.zeros((nloc, 0))
-    for _, r in modes:
-        r.destroy()
-    if R.shape[1]:
-        R = R / np.sqrt(d.comm.allreduce(np.sum(R * R, axis=0), op=MPI.SUM))
-    return (R if frame is None else frame.to_frame_rows(R)), [n for n, _ in modes]
-
-
-def _free_motions(R, fixed, comm):
-    """The combinations of the columns of R (owned rows, unit columns) that vanish on the ``fixed`` rows:
-    (their coefficients, k x m)."""
-    Rf = R[fixed]
-    G = comm.allreduce(Rf.T @ Rf, op=MPI.SUM)
-    w, v = np.linalg.eigh(G)
-    return v[:, w < FREE_TOL]
-
-
-def _pins(N, fixed, comm):
-    """Owned rows (local indices, on their owner) where pinning U = 0 removes the free motions N (owned
-    rows x m): Gaussian elimination with complete pivoting, the pivot sought over every rank."""
-    N = N.copy()
-    N[fixed] = 0.0
-    rank, pins = comm.rank, []
-    m = N.shape[1]
-    cols = list(range(m))
-    for _ in range(m):
-        sub = np.abs(N[:, cols]) if len(N) else np.zeros((0, len(cols)))
-        k = np.unravel_index(np.argmax(sub), sub.shape) if sub.size else (-1, -1)
-        best, owner = comm.allreduce((float(sub[k]) if sub.size else -1.0, rank), op=MPI.MAXLOC)
-        row = comm.bcast(N[k[0]].copy() if rank == owner else None, root=owner)
-        col = cols[int(comm.bcast(k[1] if rank == owner else None, root=owner))]
-        if rank == owner:
-            pins.append(int(k[0]))
-        cols.remove(col)
-        if cols:
-            N[:, cols] -= np.outer(N[:, col] / row[col], row[cols])
-        N[:, col] = 0.0
-    return np.array(pins, dtype=np.int64)
 
 
 def _solve_fixed(A, L, dofs, values, comm, blocks=()):
@@ -210,18 +109,6 @@ def _tangential(d):
     return np.column_stack([d.cdofs - comp + c for c in range(n) if c != comp]).astype(np.int64)
 
 
-def _load_at_zero(d):
-    """L at t = 0 (a new vector; a time-dependent load's ``time`` is restored)."""
-    p = d.problem
-    if p.time is None:
-        return d.L.copy()
-    t = float(p.time.value)
-    p.time.value = 0.0
-    L = compat.assemble_vector(d.L_form)
-    p.time.value = t
-    return L
-
-
 def static_displacement(d, friction=None, contact="exact"):
     """The static displacement U_s (a PETSc vector of W^h) of the Discretisation ``d`` (the module's
     docstring); ``friction`` (an object with ``law``, ``mu``, ``threshold``, or None) holds the active
@@ -237,6 +124,11 @@ def static_displacement(d, friction=None, contact="exact"):
     if contact != "exact":
         raise StaticStartError(f"{who} is the exact Signorini equilibrium, and contact {contact!r} penetrates the "
                                f"obstacle at rest: start from a u0 of your own (or contact 'exact')")
+    if getattr(d, "weighted_rows", None) is not None:
+        if friction is not None and getattr(friction, "law", "none") != "none":
+            raise StaticStartError(f"{who} with friction on the weighted gap is not built yet: constrain 'vertices' "
+                                   f"or 'nodes', or start from a u0 of your own")
+        return static_rows.static_displacement(d, who)
     frame = ObstacleFrame(d) if d.obstacle_rows is not None else None
     try:
         return _static(d, friction, who, frame)
@@ -249,13 +141,13 @@ def _static(d, friction, who, frame):  # long: the active-set loop of static_dis
     """:func:`static_displacement`'s loop (``frame``: against obstacles, the nodes' frames, or None)."""
     p, comm = d.problem, d.comm
     law = getattr(friction, "law", "none") if friction is not None else "none"
-    L = _load_at_zero(d)
+    L = load_at_zero(d)
     A, lb, mass_mult = (d.A, d.lb, d.mass_mult) if frame is None else frame.start(L)   # obstacles: framed
     nloc = d.A.getLocalSize()[0]
     load = max(comm.allreduce(float(np.max(np.abs(L.array), initial=0.0)), op=MPI.MAX), np.finfo(float).tiny)
     x = p.mesh.geometry.x
     size = max(comm.allreduce(float(np.ptp(x, axis=0).max()) if len(x) else 0.0, op=MPI.MAX), 1.0)
-    R, names = _kernel_basis(d, nloc, frame)
+    R, names = kernel_basis(d, nloc, frame)
     tdofs = _tangential(d) if law != "none" else np.zeros((len(d.cdofs), 0), dtype=np.int64)
     low = comm.allreduce(float(np.min(-lb, initial=np.inf)), op=MPI.MIN)      # -lb: the gap at U = 0
     active = -lb <= (max(low, 0.0) + RTOL * size)
@@ -290,7 +182,7 @@ def _static(d, friction, who, frame):  # long: the active-set loop of static_dis
                                    f"beyond the rigid motions; KSP reason {reason}, residual {resid:.2e} of the load "
                                    f"{load:.2e}): no unique static solution; start from a u0 of your own")
         if N.shape[1]:
-            _no_rigid_displacement(d, U, N, mass_mult)
+            no_rigid_displacement(d, U, N, mass_mult)
         A.mult(U, r)
         r.axpy(-1.0, L)                 # the obstacle's reactions: normal, and tangential (friction)
         b.destroy()
@@ -318,7 +210,7 @@ def _free_or_refuse(d, R, names, fixed, b, law, active, who, load):
     """(the free rigid motions N: owned rows x m, the dofs to pin to remove them) for the ``fixed`` dofs;
     StaticStartError when the load ``b`` works along one of them (no static solution)."""
     comm, nloc = d.comm, len(fixed)
-    coef = _free_motions(R, fixed, comm) if R.shape[1] else np.zeros((0, 0))
+    coef = free_motions(R, fixed, comm) if R.shape[1] else np.zeros((0, 0))
     if not coef.size:
         return np.zeros((nloc, 0)), np.zeros(0, dtype=np.int64)
     N = R @ coef
@@ -334,22 +226,7 @@ def _free_or_refuse(d, R, names, fixed, b, law, active, who, load):
             f"{'lift off or slide' if law == 'none' else 'lift off or slip'}: {d.num_constraints} "
             f"constrained, {comm.allreduce(int(active.sum()), op=MPI.SUM)} in contact); hold it "
             f"({'friction, ' if law == 'none' else ''}Dirichlet data) or start from rest")
-    return N, _pins(N, fixed, comm)
-
-
-def _no_rigid_displacement(d, U, N, mass_mult):
-    """U -= N c with (M N)^T U = 0 after: no rigid displacement along the free motions N (the centre
-    of mass does not move along them); ``mass_mult(x, y)``: y = M x."""
-    comm, MN = d.comm, []
-    for j in range(N.shape[1]):
-        nj, mj = U.duplicate(), U.duplicate()
-        nj.array[:] = N[:, j]
-        mass_mult(nj, mj)
-        MN.append(mj.array.copy())
-        nj.destroy(), mj.destroy()
-    MN = np.column_stack(MN)
-    c = np.linalg.solve(comm.allreduce(MN.T @ N, op=MPI.SUM), comm.allreduce(MN.T @ U.array, op=MPI.SUM))
-    U.array[:] -= N @ c
+    return N, pin_dofs(N, fixed, comm)
 
 
 def _stick_or_slip(d, friction, r, u, tdofs, active, stick, sdir, bound, ulen, tol):

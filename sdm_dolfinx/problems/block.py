@@ -176,16 +176,21 @@ class StaticStart:
     """
 
     def __init__(self, msh, solve, label="block --start equilibrium", instead="--start rest", kinds=("vertices",),
-                 kind="vertices"):
+                 kind="vertices", general=()):
         """``solve(element, kind) -> fem.Function``: the static solution in a vector ``element`` with
         the constraint of ``kind`` (one of ``kinds``: "vertices", "nodes"); ``label`` and ``instead``
-        name the option and its alternative in the error message."""
+        name the option and its alternative in the error message; ``general``: the kinds whose start is
+        the run's own static solve (:data:`~sdm_dolfinx.problems.base.EQUILIBRIUM`, e.g. "weighted")."""
         self.msh, self.solve, self.label, self.instead, self.kinds, self.kind = msh, solve, label, instead, kinds, kind
+        self.general = general
         self.solutions = {}
 
     def for_constraint(self, kind):
         """The start for the run's constraint kind (the Discretisation asks): the equilibrium with the
-        constraint held where that kind holds it (ProblemInputError for a kind it cannot solve)."""
+        constraint held where that kind holds it (ProblemInputError for a kind it cannot solve), or
+        :data:`~sdm_dolfinx.problems.base.EQUILIBRIUM` for the ``general`` kinds."""
+        if kind in self.general:
+            return _problem.EQUILIBRIUM
         if kind == self.kind:
             return self
         if kind not in self.kinds:
@@ -193,7 +198,7 @@ class StaticStart:
                      "weighted": "as the weighted gap"}.get(kind, f"of kind {kind}")
             raise _problem.ProblemInputError(f"{self.label}: no static solution with the constraint {where} "
                                              f"(constrain {kind}); use {self.instead}")
-        return StaticStart(self.msh, self.solve, self.label, self.instead, self.kinds, kind)
+        return StaticStart(self.msh, self.solve, self.label, self.instead, self.kinds, kind, self.general)
 
     def __call__(self, x):
         msh = self.msh
@@ -248,7 +253,7 @@ def _build(comm, width, height, nx, ny, E, nu, rho, gravity, v0, start):
     x_probe = (nx // 2) * width / nx                 # the bottom vertex nearest to the centre
     if start == "equilibrium":
         u0 = StaticStart(msh, lambda element, kind: static_solution(msh, element, a, l, x_probe, on_bottom, kind),
-                         kinds=("vertices", "nodes"))
+                         kinds=("vertices", "nodes"), general=("weighted",))
     else:
         u0 = lambda x: np.zeros((2, x.shape[1]))                             # noqa: E731
     return _problem.Problem(

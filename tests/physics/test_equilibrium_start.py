@@ -18,7 +18,9 @@ the load's normal part at every step, up to the solves' round-off. Checked on
 * the refusals, one line each, where the static problem has no solution;
 * ``u0`` as a dolfinx Function (interpolated into W^h);
 * against obstacles (the static problem in each node's frame): an inclined plane against tilted
-  gravity, and a disc at the bottom of a circular bowl.
+  gravity, and a disc at the bottom of a circular bowl;
+* with the weighted gap (its rows held by multipliers): a bar under its own weight starts at the
+  exact solution, 2-D and 3-D; the refusals.
 1 and 2 ranks.
 """
 import dataclasses
@@ -293,3 +295,50 @@ def test_a_disc_at_the_bottom_of_a_bowl_starts_at_rest(pair, friction):
     eq = runs["equilibrium"]
     assert np.max(np.abs(eq["contact_force"][1:] - weight)) <= 1e-6 * weight
     assert np.max(eq["kinetic"]) <= 1e-6 * np.max(runs["rest"]["kinetic"])
+
+
+@pytest.mark.filterwarnings("ignore::sdm_dolfinx.run.result.BoundaryGapWarning")   # the vertex rows' sink
+@pytest.mark.parametrize("dim,n", [(2, 4), (3, 2)])
+def test_weighted_gap_start_is_the_exact_bar_under_its_own_weight(dim, n):
+    """incline_problem.py at theta = 0 with nu = 0, P2/P1 and ``constrain="weighted"`` (the static loop
+    on general rows, sdm_dolfinx.method.static_rows). The exact solution: a bar on a frictionless
+    foundation under its own weight, u_c(x) = -(rho g / E)(H x_c - x_c^2 / 2), the other components 0
+    (nu = 0), is quadratic, so in W^h; it satisfies the discrete problem: A U - L is the consistent
+    force of the uniform pressure rho g H on the foundation, int p phi_j ds = sum_i mu_i G_ij with
+    mu_i = p int psi_i ds >= 0 (sum_i psi_i = 1 on the face), and G U = 0 = g. So U_s is its
+    interpolant to round-off (1e-9 of its largest value), sum mu = m g; the vertex constraint, whose
+    rows leave P2's mid-edge nodes free, is not (its face sinks: the bound is no tautology). The run
+    from U_s at rest stays there (1e-10), carrying m g at every step (within :func:`slack`)."""
+    dt, T, H, E, rho = 1e-4, 1e-3, 10.0, 1000.0, 1e-6
+    m = rho * 10.0 ** dim
+    c = dim - 1
+    errors = {}
+    for kind in ("weighted", "vertices"):
+        res = simulate(incline(dim=dim, n=n, nu=0.0, theta=0.0), pair="P2/P1", dt=dt, T=T, constrain=kind)
+        U0, _ = res.discretisation.initial_state()
+        exact = fem.Function(res.discretisation.W)
+
+        def field(x):
+            v = np.zeros((dim, x.shape[1]))
+            v[c] = -(rho * G / E) * (H * x[c] - 0.5 * x[c] ** 2)
+            return v
+        exact.interpolate(field)
+        nown = len(U0.array)
+        errors[kind] = global_max(U0.array - exact.x.array[:nown]) / global_max(exact.x.array[:nown])
+        if kind == "weighted":
+            ts = res.timeseries
+            assert global_max(res.U.array - U0.array) <= 1e-10 * global_max(U0.array)
+            assert np.max(np.abs(ts["contact_force"][1:] - m * G)) <= slack(dt, m, 1e-3)
+            assert np.max(ts["kinetic"]) <= 1e-20 and np.min(ts["gap_min_boundary"]) >= -1e-12
+    assert errors["weighted"] <= 1e-9 and errors["vertices"] > 1e-3, errors
+
+
+def test_weighted_gap_start_refuses_a_body_nothing_holds():
+    """Frictionless on the 30 degree incline, the weighted rows hold the block normally only: the load
+    works along x, no static solution (one line, as with the vertex constraint); with friction the
+    weighted gap has no static start yet (refused in one line: friction on it is not built)."""
+    with pytest.raises(StaticStartError, match="no static equilibrium: neither the active contact .frictionless, "
+                                               "weighted gap. nor Dirichlet data fix the translation along x"):
+        simulate(incline(), dt=1e-4, T=1e-4, constrain="weighted")
+    with pytest.raises(Exception, match="weighted"):
+        simulate(incline(), dt=1e-4, T=1e-4, constrain="weighted", friction="coulomb", friction_options={"mu": 0.8})

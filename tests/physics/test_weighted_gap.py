@@ -20,18 +20,23 @@
   ranks (a measure counted twice on the ranks' shared vertices made it 6 % high on 2 ranks before).
 * What the weighted rows do not take is refused in one line: 1-D (the rows would be the vertex
   constraint), a problem without contact facets (the membrane: its constraint is inside the domain),
-  obstacles or a moving bound, friction, the Nitsche treatment, the equilibrium start (the penalty
-  treatment takes the weighted rows: test_penalty_gap_rows.py).
+  obstacles or a moving bound, friction, the Nitsche treatment, the disc's own equilibrium start (the
+  penalty treatment takes the weighted rows: test_penalty_gap_rows.py; the equilibrium start of a
+  problem file and of the block: test_equilibrium_start.py).
+* **An initial state is checked against the rows themselves**: a face that is above the foundation on
+  average around every vertex but below it at P2's mid-edge nodes is admissible for the weighted gap
+  and refused for the node constraint (it was refused as "below the bound at every constrained node").
 """
 from pathlib import Path
 
 from mpi4py import MPI
 
+import numpy as np
 import pytest
 
 from sdm_dolfinx.analysis.infsup import inspect
 from sdm_dolfinx.errors import SdmError
-from sdm_dolfinx.problems import block, load_file, membrane, rod1d
+from sdm_dolfinx.problems import block, disc, load_file, membrane, rod1d
 from sdm_dolfinx.run import simulate
 
 COMM = MPI.COMM_WORLD
@@ -69,7 +74,8 @@ def test_weighted_rows_do_not_mend_an_ill_posed_pair(pair):
     (lambda: membrane.problem(COMM, N=6), {}, "no contact facet"),
     (lambda: block.problem(COMM, nx=4, ny=2, start="rest"), dict(friction="coulomb", friction_options={"mu": 0.3}), "friction"),
     (lambda: block.problem(COMM, nx=4, ny=2, start="rest"), dict(contact="nitsche"), "contact 'nitsche'"),
-    (lambda: block.problem(COMM, nx=4, ny=2), {}, "equilibrium"),
+    (lambda: disc.problem(COMM, start="equilibrium", height=0.0, v0=0.0), {}, "disc --start equilibrium: no static "
+     "solution with the constraint as the weighted gap"),
 ])
 def test_what_the_weighted_rows_do_not_take_is_refused(make, given, words):
     with pytest.raises(SdmError, match=words):
@@ -81,3 +87,21 @@ def test_weighted_rows_refuse_a_moving_bound():
     p.lower_bound, p.moving_bound = (lambda x, t: 0.1 * t - x[1]), True
     with pytest.raises(SdmError, match="moving bound"):
         simulate(p, pair="P2/P1", dt=1e-4, T=2e-4, constrain="weighted")
+
+
+def test_an_initial_state_is_checked_against_the_weighted_rows():
+    """u0_y = delta (cos(2 pi x / h) + 1/2) on the block's face (h the cells' width): its P2 interpolant
+    along an edge is 1 - 8s + 8s^2 (vertex 1, mid-edge -1) plus 1/2, whose average against the hat
+    function psi_i is -1/3 + 1/2 = 1/6 > 0 at every vertex (int_0^1 (1 - s)(1 - 8s + 8s^2) ds = -1/6, int psi
+    = 1/2), while the mid-edge nodes are at -delta/2. The weighted rows accept it, the node constraint
+    refuses it in one line naming its mid-edge node's depth delta/2."""
+    from sdm_dolfinx.method.discretisation import Discretisation
+    from sdm_dolfinx.method.errors import DiscretisationError
+    delta, nx = 1e-3, 4
+    h = 20.0 / nx
+    p = block.problem(COMM, nx=nx, ny=2, start="rest")
+    p.u0 = lambda x: np.vstack([np.zeros(x.shape[1]), delta * (np.cos(2 * np.pi * x[0] / h) + 0.5)])
+    Discretisation(p, "P2/P1", constrain="weighted").initial_state()
+    with pytest.raises(DiscretisationError, match=r"below the bound at 4 constrained nodes, by up to 0.0005 .*every "
+                                                  r"constrained node"):
+        Discretisation(p, "P2/P1", constrain="nodes").initial_state()

@@ -1,0 +1,144 @@
+"""The pieces of the static problem that every equilibrium start shares (:mod:`.equilibrium` on bounds of
+dofs and in the obstacles' frames, :mod:`.static_rows` on general rows): the tolerances, the error, the
+load at t = 0, and the rigid motions A does not resist (which are free, how they are pinned for a solve
+and removed after it)."""
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import numpy as np
+from dolfinx import fem
+
+from sdm_dolfinx import compat
+from sdm_dolfinx.method.errors import DiscretisationError
+
+#: the most active-set changes of the loop
+MAX_ITER = 100
+#: a reaction below -RTOL times the load's size pulls (released); a gap below -RTOL times the mesh's
+#: size penetrates (added); the cone and the free motions' load are checked at this relative size too
+RTOL = 1e-10
+#: a rigid motion r is in A's kernel when |A r|_inf <= KERNEL_TOL |A|_inf |r|_inf
+KERNEL_TOL = 1e-9
+#: a rigid motion is free when the unit-norm combination's squared norm on the fixed dofs is below this
+FREE_TOL = 1e-12
+#: the free dofs' residual |A U - L|_inf must be below this times |L|_inf (else A is singular there)
+RESIDUAL_TOL = 1e-8
+
+
+class StaticStartError(DiscretisationError):
+    """``u0 = "equilibrium"`` where the static problem has no (unique) solution: one line, exit 2."""
+
+
+def rigid_modes(d):
+    """[(name, vector of W)] of the rigid motions of the problem's unknown: translations and rotations
+    (about the mesh's centre) of a vector u of the mesh's dimension, the translations of another vector,
+    the constant of a scalar u."""
+    p, msh = d.problem, d.problem.mesh
+    shape = tuple(p.shape)
+    if not shape:
+        return [("the constant", d.rigid_vector(0))]
+    n, axes = shape[0], "xyz"
+    modes = [(f"the translation along {axes[c] if c < 3 else c}", d.rigid_vector(c)) for c in range(n)]
+    gdim = msh.geometry.dim
+    if n != gdim or gdim < 2:
+        return modes
+    comm = msh.comm
+    x = msh.geometry.x[:, :gdim]
+    lo, hi = x.min(axis=0) if len(x) else np.full(gdim, np.inf), x.max(axis=0) if len(x) else np.full(gdim, -np.inf)
+    comm.Allreduce(MPI.IN_PLACE, lo, op=MPI.MIN)
+    comm.Allreduce(MPI.IN_PLACE, hi, op=MPI.MAX)
+    c = 0.5 * (lo + hi)
+    planes = [(0, 1, "z")] if gdim == 2 else [(1, 2, "x"), (2, 0, "y"), (0, 1, "z")]
+    for i, j, about in planes:
+        def rotation(x, i=i, j=j):
+            v = np.zeros((gdim, x.shape[1]))
+            v[i], v[j] = -(x[j] - c[j]), x[i] - c[i]
+            return v
+        f = fem.Function(d.W)
+        f.interpolate(rotation)
+        modes.append((f"the rotation about {about}", compat.petsc_vec(f).copy()))
+    return modes
+
+
+def kernel(d, modes):
+    """The rigid motions A does not resist (A r = 0 to round-off): [(name, r)]."""
+    norm_a = d.A.norm(PETSc.NormType.INFINITY)
+    out, y = [], d.A.createVecLeft()
+    for name, r in modes:
+        d.A.mult(r, y)
+        if y.norm(PETSc.NormType.INFINITY) <= KERNEL_TOL * norm_a * r.norm(PETSc.NormType.INFINITY):
+            out.append((name, r))
+        else:
+            r.destroy()
+    y.destroy()
+    return out
+
+
+def kernel_basis(d, nloc, frame=None):
+    """(R: the rigid motions in A's kernel as unit columns, owned rows (in the ``frame``: T^T R); their
+    names)."""
+    modes = kernel(d, rigid_modes(d))
+    R = np.column_stack([r.array for _, r in modes]) if modes else np.zeros((nloc, 0))
+    for _, r in modes:
+        r.destroy()
+    if R.shape[1]:
+        R = R / np.sqrt(d.comm.allreduce(np.sum(R * R, axis=0), op=MPI.SUM))
+    return (R if frame is None else frame.to_frame_rows(R)), [n for n, _ in modes]
+
+
+def free_motions(R, fixed, comm):
+    """The combinations of the columns of R (owned rows, unit columns) that vanish on the ``fixed`` rows:
+    (their coefficients, k x m)."""
+    Rf = R[fixed]
+    G = comm.allreduce(Rf.T @ Rf, op=MPI.SUM)
+    w, v = np.linalg.eigh(G)
+    return v[:, w < FREE_TOL]
+
+
+def pin_dofs(N, fixed, comm):
+    """Owned rows (local indices, on their owner) where pinning U = 0 removes the free motions N (owned
+    rows x m): Gaussian elimination with complete pivoting, the pivot sought over every rank."""
+    N = N.copy()
+    N[fixed] = 0.0
+    rank, pins = comm.rank, []
+    m = N.shape[1]
+    cols = list(range(m))
+    for _ in range(m):
+        sub = np.abs(N[:, cols]) if len(N) else np.zeros((0, len(cols)))
+        k = np.unravel_index(np.argmax(sub), sub.shape) if sub.size else (-1, -1)
+        best, owner = comm.allreduce((float(sub[k]) if sub.size else -1.0, rank), op=MPI.MAXLOC)
+        row = comm.bcast(N[k[0]].copy() if rank == owner else None, root=owner)
+        col = cols[int(comm.bcast(k[1] if rank == owner else None, root=owner))]
+        if rank == owner:
+            pins.append(int(k[0]))
+        cols.remove(col)
+        if cols:
+            N[:, cols] -= np.outer(N[:, col] / row[col], row[cols])
+        N[:, col] = 0.0
+    return np.array(pins, dtype=np.int64)
+
+
+def load_at_zero(d):
+    """L at t = 0 (a new vector; a time-dependent load's ``time`` is restored)."""
+    p = d.problem
+    if p.time is None:
+        return d.L.copy()
+    t = float(p.time.value)
+    p.time.value = 0.0
+    L = compat.assemble_vector(d.L_form)
+    p.time.value = t
+    return L
+
+
+def no_rigid_displacement(d, U, N, mass_mult):
+    """U -= N c with (M N)^T U = 0 after: no rigid displacement along the free motions N (the centre
+    of mass does not move along them); ``mass_mult(x, y)``: y = M x."""
+    comm, MN = d.comm, []
+    for j in range(N.shape[1]):
+        nj, mj = U.duplicate(), U.duplicate()
+        nj.array[:] = N[:, j]
+        mass_mult(nj, mj)
+        MN.append(mj.array.copy())
+        nj.destroy(), mj.destroy()
+    MN = np.column_stack(MN)
+    c = np.linalg.solve(comm.allreduce(MN.T @ N, op=MPI.SUM), comm.allreduce(MN.T @ U.array, op=MPI.SUM))
+    U.array[:] -= N @ c
