@@ -10,7 +10,9 @@ def _fmt_beta(b):
 #: what the report says of where K^h acts, by ``constrain``
 WHERE = {"vertices": "the constraint at the constrained vertices (eq. (13))",
          "nodes": "the constraint at every dof of W^h on the constrained boundary (constrain='nodes': "
-                  "P2's mid-edge nodes too)"}
+                  "P2's mid-edge nodes too)",
+         "weighted": "the weighted gap's rows: the gap averaged against each constrained vertex's hat function "
+                     "over the contact facets (constrain='weighted')"}
 
 
 def report(r):

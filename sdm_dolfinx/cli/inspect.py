@@ -165,9 +165,10 @@ def _check_nodes(args, every):
     """Messages for --constrain nodes with pairs whose W^h has only vertex dofs on the boundary (P1,
     P1+): skipped (``args.skipped``) when every pair was asked for, an error when named."""
     args.skipped = []
+    errors = ([f"--coulomb-bound measures the vertex constraint: drop --constrain {args.constrain}"]
+              if args.coulomb_bound and args.constrain != "vertices" else [])
     if args.constrain != "nodes":
-        return []
-    errors = ["--coulomb-bound measures the vertex constraint: drop --constrain nodes"] if args.coulomb_bound else []
+        return errors
     vertex_only = [q for q in args.pair if q in PAIRS and not (PAIRS[q].w[0] == "P" and PAIRS[q].w[1] >= 2)]
     if every:
         args.skipped = vertex_only

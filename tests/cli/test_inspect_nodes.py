@@ -1,5 +1,6 @@
-"""``python -m sdm_dolfinx inspect --constrain nodes``: condition (7) with the constraint at every
-dof of W^h on the constrained boundary, reported with its number; one-line refusals."""
+"""``python -m sdm_dolfinx inspect --constrain nodes`` (and ``weighted``): condition (7) with the constraint
+at every dof of W^h on the constrained boundary (the weighted gap's rows), reported with its number;
+one-line refusals."""
 import json
 
 from mpi4py import MPI
@@ -33,10 +34,22 @@ def test_block_p2_p1_with_nodes_is_measured_and_reported(mpi_tmp_path, capsys):
         assert "every dof of W^h on the constrained boundary" in text and f"= {p2p1['beta']:.6g}" in text
 
 
+def test_the_weighted_gap_is_measured_and_reported(capsys):
+    """The command docs/contact.md gives (it ended in an internal error: the report had no words for the
+    weighted rows): every pair measured, P2/P1 well-posed, the report naming the weighted rows."""
+    assert cli.main(["inspect", "--problem", "block", "--pair", "all", "--constrain", "weighted", "--nx", "6",
+                     "--ny", "3"]) == 0
+    if COMM.rank == 0:
+        text = capsys.readouterr().out
+        assert text.count("the weighted gap's rows") == 6 and "pair P2/P1" in text and "WELL-POSED" in text
+
+
 @pytest.mark.parametrize("argv, message", [
     (["--problem", "block", "--pair", "P1/P1", "--constrain", "nodes"],
      "--constrain nodes is --constrain vertices for pair P1/P1"),
     (["--problem", "block", "--pair", "P2/P1", "--constrain", "nodes", "--coulomb-bound"], "drop --constrain nodes"),
+    (["--problem", "block", "--pair", "P2/P1", "--constrain", "weighted", "--coulomb-bound"],
+     "drop --constrain weighted"),
     (["--problem", "block", "--constrain", "edges"], "invalid choice: 'edges'"),
 ])
 def test_bad_input_one_line_exit_2(argv, message, capsys):
