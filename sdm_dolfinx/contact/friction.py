@@ -48,6 +48,7 @@ from sdm_dolfinx.params import OptionError, Param, check_given
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.solvers.friction_cone import FrictionalNewtonCone
 from sdm_dolfinx.solvers.friction_newton import FrictionalNewton
+from sdm_dolfinx.solvers.friction_rows import rows_matrix
 
 #: each friction law (the values of the run option ``friction``) and the options it declares
 #: (``friction_options``)
@@ -195,10 +196,15 @@ def make_solver(integ, options):
         rows.require_free(f"friction {f.law} against obstacles")
         ndofs, lb = rows.dofs[:, 0], np.zeros(len(rows.dofs))
         integ.tdofs = rows.dofs[:, 1] if rows.gdim == 2 else np.ascontiguousarray(rows.dofs[:, 1:])
+    weighted = getattr(d, "weighted_rows", None)
+    if weighted is not None:        # the weighted gap: its rows, and the same weights on the tangential components
+        comp = d.problem.constraint_component or 0
+        weighted = rows_matrix(weighted.G, comp, tangential_axes(d.problem), d.comm)
+        lb = d.weighted_rows.g
     cls = FrictionalNewtonCone if integ.tdofs.ndim == 2 else FrictionalNewton
     solver = cls(integ.K, ndofs, integ.tdofs, lb, law=f.law, mu=f.mu, threshold=thresholds,
                  symmetric_positive=not integ.block, options=options, factor_matrix=integ.factor_matrix,
-                 frames=rows is not None)
+                 frames=rows is not None, rows=weighted)
     integ.slip = np.zeros(len(integ.tdofs))
     integ.slip_t = np.zeros((len(integ.tdofs), 3) if rows is not None and rows.gdim == 3 else integ.tdofs.shape)
     return solver

@@ -75,8 +75,8 @@ def failure_hint(integ, mu, command):
     constrained vertices) and ``command``, which measures it before a run (collective)."""
     solver = integ.solver
     m = solver.comm.allreduce(len(solver.ndofs))
-    if np.ndim(solver.tdofs) != 1 or solver.frames:
-        return ""                                   # 3-D (a disc-shaped cone), obstacles: no bound derived
+    if np.ndim(solver.tdofs) != 1 or solver.frames or solver.rowwise:
+        return ""               # 3-D (a disc-shaped cone), obstacles, the weighted gap: no bound derived
     if m > FAILURE_MEASURE_MAX:
         return f"; mu = {mu:g} may be above the Coulomb bound of this step problem: {command} measures it"
     try:
@@ -108,7 +108,7 @@ def warn_if_above(integ, mu):
     not sharp (a failed step names it again)."""
     solver = integ.solver
     m = solver.comm.allreduce(len(solver.ndofs))
-    if np.ndim(solver.tdofs) != 1 or solver.frames or m == 0 or m > UPFRONT_MEASURE_MAX:
+    if np.ndim(solver.tdofs) != 1 or solver.frames or solver.rowwise or m == 0 or m > UPFRONT_MEASURE_MAX:
         return
     try:
         bound = measure(integ)["mu_c"]

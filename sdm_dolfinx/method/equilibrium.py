@@ -55,7 +55,7 @@ from sdm_dolfinx.method import static_rows
 from sdm_dolfinx.method.static_frame import ObstacleFrame
 from sdm_dolfinx.method.static_parts import (MAX_ITER, RESIDUAL_TOL, RTOL, StaticStartError,  # noqa: F401 (public)
                                              free_motions, kernel_basis, load_at_zero, no_rigid_displacement,
-                                             pin_dofs)
+                                             pin_dofs, stick_or_slip)
 from sdm_dolfinx.problems.base import EQUILIBRIUM as EQUILIBRIUM  # noqa: F401  (the value of u0 asking for it)
 from sdm_dolfinx.problems.base import label
 
@@ -125,10 +125,7 @@ def static_displacement(d, friction=None, contact="exact"):
         raise StaticStartError(f"{who} is the exact Signorini equilibrium, and contact {contact!r} penetrates the "
                                f"obstacle at rest: start from a u0 of your own (or contact 'exact')")
     if getattr(d, "weighted_rows", None) is not None:
-        if friction is not None and getattr(friction, "law", "none") != "none":
-            raise StaticStartError(f"{who} with friction on the weighted gap is not built yet: constrain 'vertices' "
-                                   f"or 'nodes', or start from a u0 of your own")
-        return static_rows.static_displacement(d, who)
+        return static_rows.static_displacement(d, who, friction)
     frame = ObstacleFrame(d) if d.obstacle_rows is not None else None
     try:
         return _static(d, friction, who, frame)
@@ -191,8 +188,8 @@ def _static(d, friction, who, frame):  # long: the active-set loop of static_dis
         add = ~active & (gap < -RTOL * size)
         changes = int(release.sum() + add.sum())
         if law != "none":
-            changes += _stick_or_slip(d, friction, r.array, U.array, tdofs, active & ~release, stick, sdir, bound,
-                                      ulen, RTOL * load)
+            changes += stick_or_slip(friction, r.array[d.cdofs], r.array[tdofs], U.array[tdofs], d.cmeasure,
+                                     active & ~release, stick, sdir, bound, ulen, RTOL * load)
         if not comm.allreduce(changes, op=MPI.SUM):
             break
         active = (active & ~release) | add
@@ -227,33 +224,3 @@ def _free_or_refuse(d, R, names, fixed, b, law, active, who, load):
             f"constrained, {comm.allreduce(int(active.sum()), op=MPI.SUM)} in contact); hold it "
             f"({'friction, ' if law == 'none' else ''}Dirichlet data) or start from rest")
     return N, pin_dofs(N, fixed, comm)
-
-
-def _stick_or_slip(d, friction, r, u, tdofs, active, stick, sdir, bound, ulen, tol):
-    """One update of the stick and slip sets (in place) after a static solve; the number of changes.
-
-    A sticking dof whose tangential reaction leaves the cone (|r_t| > bound, Coulomb mu r_n, Tresca
-    s m_i) slips from now on, along -r_t / |r_t| with the reaction -bound s; a slipping dof whose
-    displacement u_t went against its slip direction (u_t . s <= 0) sticks again; a slipping dof takes
-    the direction of u_t (3-D) and the bound of the new normal reaction (Coulomb): a change of either
-    beyond ``tol`` counts, so the loop ends at a fixed point."""
-    lam_n, lam_t, ut = r[d.cdofs], r[tdofs], u[tdofs]
-    new = (friction.mu * np.maximum(lam_n, 0.0) if friction.law == "coulomb"
-           else friction.threshold * d.cmeasure)
-    norm_t = np.linalg.norm(lam_t, axis=1)
-    slipping = active & ~stick
-    to_slip = active & stick & (norm_t > new + tol)
-    dot = np.sum(ut * sdir, axis=1)
-    to_stick = slipping & (dot <= 0.0)
-    keep = slipping & ~to_stick
-    norm_u = np.linalg.norm(ut, axis=1)
-    turn = np.zeros(len(stick))
-    if keep.any():
-        s_new = ut[keep] / norm_u[keep, None]
-        turn[keep] = np.linalg.norm(s_new - sdir[keep], axis=1) * new[keep]
-        sdir[keep], ulen[keep] = s_new, norm_u[keep]
-    moved = keep & ((np.abs(new - bound) > tol) | (turn > tol))
-    sdir[to_slip], ulen[to_slip | to_stick] = -lam_t[to_slip] / norm_t[to_slip, None], 0.0
-    stick[to_slip], stick[to_stick] = False, True
-    bound[:] = new
-    return int(to_slip.sum() + to_stick.sum() + moved.sum())

@@ -80,9 +80,7 @@ def refusal(integ: Any, scheme: Any, vi_solver: str, linear: str) -> Optional[st
         return f"{what}, which contact {integ.contact!r} does not take yet: use contact {' or '.join(map(repr, takes))}"
     if integ.contact != "exact" and d.obstacle_rows is not None and d.obstacle_rows.moves:
         return f"{what} that move, which contact {integ.contact!r} does not take yet: use contact 'exact'"
-    if integ.friction is not None and d.obstacle_rows is None:
-        return f"{what}: friction on the weighted gap is not built yet (frictionless only)"
-    if integ.friction is not None and d.obstacle_rows.moves:
+    if integ.friction is not None and d.obstacle_rows is not None and d.obstacle_rows.moves:
         return (f"{what} that move, and friction against a moving obstacle is not built yet (the slip would be "
                 f"measured in the fixed frame, not against the obstacle's surface): frictionless, or a fixed obstacle")
     snes = vi_solver in ("vinewtonrsls", "vinewtonssls") and d.obstacle_rows is not None

@@ -142,3 +142,34 @@ def no_rigid_displacement(d, U, N, mass_mult):
     MN = np.column_stack(MN)
     c = np.linalg.solve(comm.allreduce(MN.T @ N, op=MPI.SUM), comm.allreduce(MN.T @ U.array, op=MPI.SUM))
     U.array[:] -= N @ c
+
+
+def stick_or_slip(friction, lam_n, lam_t, ut, measure, active, stick, sdir, bound, ulen, tol):
+    """One update of the stick and slip sets (in place) after a static solve; the number of changes.
+
+    A sticking dof whose tangential reaction leaves the cone (|r_t| > bound, Coulomb mu r_n, Tresca
+    s m_i) slips from now on, along -r_t / |r_t| with the reaction -bound s; a slipping dof whose
+    displacement u_t went against its slip direction (u_t . s <= 0) sticks again; a slipping dof takes
+    the direction of u_t (3-D) and the bound of the new normal reaction (Coulomb): a change of either
+    beyond ``tol`` counts, so the loop ends at a fixed point. ``lam_n`` (m,), ``lam_t`` and ``ut`` (m x
+    (gdim - 1)): the normal and tangential reactions and the tangential displacements of the m contact
+    unknowns (dofs, or rows); ``measure``: their nodal measures (Tresca's s m_i)."""
+    new = (friction.mu * np.maximum(lam_n, 0.0) if friction.law == "coulomb"
+           else friction.threshold * measure)
+    norm_t = np.linalg.norm(lam_t, axis=1)
+    slipping = active & ~stick
+    to_slip = active & stick & (norm_t > new + tol)
+    dot = np.sum(ut * sdir, axis=1)
+    to_stick = slipping & (dot <= 0.0)
+    keep = slipping & ~to_stick
+    norm_u = np.linalg.norm(ut, axis=1)
+    turn = np.zeros(len(stick))
+    if keep.any():
+        s_new = ut[keep] / norm_u[keep, None]
+        turn[keep] = np.linalg.norm(s_new - sdir[keep], axis=1) * new[keep]
+        sdir[keep], ulen[keep] = s_new, norm_u[keep]
+    moved = keep & ((np.abs(new - bound) > tol) | (turn > tol))
+    sdir[to_slip], ulen[to_slip | to_stick] = -lam_t[to_slip] / norm_t[to_slip, None], 0.0
+    stick[to_slip], stick[to_stick] = False, True
+    bound[:] = new
+    return int(to_slip.sum() + to_stick.sum() + moved.sum())

@@ -9,64 +9,133 @@ A row reads several nodes, so no change of variables makes it the bound of one u
 obstacles' node rows are made in :mod:`.static_frame`): the active rows are held by their multipliers,
 the saddle-point system
 
-    [ A     -G_A^T ] [ U  ]   [  L  ]
-    [ -G_A   0     ] [ mu ] = [ -g_A ]
+    [ A     -C^T ] [ U  ]   [ L - f ]
+    [ -C     0   ] [ mu ] = [ -c    ]
 
-(symmetric, indefinite) solved by MUMPS's LU with the Dirichlet dofs eliminated. The active-set loop is
-:mod:`.equilibrium`'s: start with the rows touching at U = 0 (the lowest ones if none does), release a
-row whose multiplier pulls (mu_i < 0), add one that penetrates (G_i U < g_i), until neither happens. The
-free rigid motions are :mod:`.equilibrium`'s too, with "fixed" meaning moved by an active row or a
-Dirichlet dof (G_A r != 0): the load must do no work along the others (refused in one line otherwise),
-which are pinned for the solve and then removed with the mass (R^T M U = 0). Frictionless only (friction
-on the weighted gap is not built yet: refused before this). Started at U_s with zero velocity a run stays
-there: the midpoint step's rows are those of the static problem, with the multipliers mu.
+(symmetric, indefinite) solved by MUMPS's LU with the Dirichlet dofs eliminated; C holds the active
+normal rows (C U = g there). The active-set loop is :mod:`.equilibrium`'s: start with the rows touching
+at U = 0 (the lowest ones if none does), release a row whose multiplier pulls (mu_i < 0), add one that
+penetrates (G_i U < g_i), until neither happens.
+
+**With friction** (Coulomb, Tresca) the tangential rows H_(i,t) (the same weights on a tangential
+component: :mod:`sdm_dolfinx.solvers.friction_rows`) are the tangential unknowns, as the tangential dofs
+are in :mod:`.equilibrium`: an active row sticks (H_i U = 0: C holds its tangential rows too, their
+multipliers the tangential reactions) while its reaction lies in the cone, else it slips with the force
+f = -bound H_i^T s on the cone's edge (3-D: with the Newton term bound / |u_t| (I - s s^T) on its
+tangential rows, H_i^T B_i H_i added to A); the sets are updated by
+:func:`~.static_parts.stick_or_slip`, the same rule.
+
+The free rigid motions are :mod:`.equilibrium`'s too, with "fixed" meaning moved by a row of C or a
+Dirichlet dof (C r != 0): the load must do no work along the others (refused in one line otherwise),
+which are pinned for the solve and then removed with the mass (R^T M U = 0). Started at U_s with zero
+velocity a run stays there: the midpoint step's rows are those of the static problem, with the
+multipliers mu.
 """
 from mpi4py import MPI
 from petsc4py import PETSc
 
 import numpy as np
+import scipy.sparse as sp
 
 from sdm_dolfinx.method import static_parts as eq
 
 
-def static_displacement(d, who):
+def _shifted(G, component, k):
+    """The rows of G (entries on ``component``'s dofs) with the same weights on component ``k``'s dofs
+    (a new PETSc matrix of G's layout)."""
+    indptr, indices, data = G.getValuesCSR()
+    local = sp.csr_matrix((data, indices, indptr), shape=(G.getLocalSize()[0], G.getSize()[1]))
+    local.eliminate_zeros()         # the assembled pattern is blocked: the other components' entries are 0
+    H = PETSc.Mat().createAIJ(G.getSizes(), csr=(local.indptr.astype(PETSc.IntType),
+                                                  (local.indices - component + k).astype(PETSc.IntType),
+                                                  local.data), comm=G.getComm())
+    H.assemble()
+    return H
+
+
+def static_displacement(d, who, friction=None):
     """The static displacement U_s (a PETSc vector of W^h) of ``d`` with the weighted gap (the module's
-    docstring); ``who`` names the start in errors. Collective.
+    docstring); ``friction`` (``law``, ``mu``, ``threshold``) or None; ``who`` names the start in errors.
+    Collective.
 
     Raises:
         StaticStartError: a free rigid motion along which the load works, a singular system, no active
             set in :data:`~.static_parts.MAX_ITER` changes.
     """
     comm, G, g = d.comm, d.weighted_rows.G, d.weighted_rows.g
+    law = getattr(friction, "law", "none") if friction is not None else "none"
+    comp = d.problem.constraint_component or 0
+    axes = [k for k in range(d.problem.shape[0]) if k != comp] if law != "none" else []
+    H = [_shifted(G, comp, k) for k in axes]
     L = eq.load_at_zero(d)
     nloc = d.A.getLocalSize()[0]
     load = max(comm.allreduce(float(np.max(np.abs(L.array), initial=0.0)), op=MPI.MAX), np.finfo(float).tiny)
     x = d.problem.mesh.geometry.x
     size = max(comm.allreduce(float(np.ptp(x, axis=0).max()) if len(x) else 0.0, op=MPI.MAX), 1.0)
     R, names = eq.kernel_basis(d, nloc)
-    GR = _rows_times(G, R)
+    GR, HR = _rows_times(G, R), [_rows_times(h, R) for h in H]
     low = comm.allreduce(float(np.min(-g, initial=np.inf)), op=MPI.MIN)      # the rows' gap at U = 0 is -g
     active = -g <= (max(low, 0.0) + eq.RTOL * size)
+    m, nt = len(g), len(axes)
+    stick = np.ones(m, dtype=bool)              # with friction: an active row sticks, or slips along sdir
+    sdir, bound, ulen = np.zeros((m, nt)), np.zeros(m), np.zeros(m)
     fixed = np.zeros(nloc, dtype=bool)
     fixed[d.ddofs] = True
-    Gu = G.createVecLeft()
-    for _ in range(eq.MAX_ITER):
-        N, pins = _free_or_refuse(d, R, GR, names, fixed, active, L, who, load)
-        U, mu = _solve(d, G, g, active, L, pins)
-        if N.shape[1]:
-            eq.no_rigid_displacement(d, U, N, d.mass_mult)
-        G.mult(U, Gu)
-        gap = Gu.array_r - g
-        release = active & (mu < -eq.RTOL * load)
-        add = ~active & (gap < -eq.RTOL * size)
-        if not comm.allreduce(int(release.sum() + add.sum()), op=MPI.SUM):
-            break
-        active = (active & ~release) | add
-        U.destroy()
-    else:
-        raise eq.StaticStartError(f"{who}: the static contact problem found no active set in {eq.MAX_ITER} changes")
-    Gu.destroy(), L.destroy()
+    measure = np.asarray(d.cmeasure, dtype=float)
+    try:
+        for _ in range(eq.MAX_ITER):
+            held = active & stick if nt else np.zeros(m, dtype=bool)
+            slip = active & ~stick if nt else np.zeros(m, dtype=bool)
+            b = L.copy()                            # the load, and the friction force -bound H^T s where it slips
+            for k, h in enumerate(H):
+                h.multTransposeAdd(_vec(h, np.where(slip, -bound * sdir[:, k], 0.0)), b, b)
+            N, pins = _free_or_refuse(d, R, [GR] + HR, names, fixed, [active] + [held] * nt, b, law, who, load)
+            blocks = [(i, bound[i] / ulen[i] * (np.eye(nt) - np.outer(sdir[i], sdir[i])))
+                      for i in np.flatnonzero(slip & (ulen > 0))] if nt > 1 else []
+            U, mu = _solve(d, [G] + H, [g] + [np.zeros(m)] * nt, [active] + [held] * nt, b, pins, blocks)
+            if N.shape[1]:
+                eq.no_rigid_displacement(d, U, N, d.mass_mult)
+            b.destroy()
+            gap = _rows(G, U) - g
+            release = active & (mu[0] < -eq.RTOL * load)
+            add = ~active & (gap < -eq.RTOL * size)
+            changes = int(release.sum() + add.sum())
+            if nt:
+                ut = np.column_stack([_rows(h, U) for h in H])
+                lam_t = np.column_stack(mu[1:])
+                for i, B in blocks:                 # a slipping row's reaction: -bound s + B u_t (unused)
+                    lam_t[i] = -bound[i] * sdir[i] + B @ ut[i]
+                changes += eq.stick_or_slip(friction, mu[0], lam_t, ut, measure, active & ~release, stick, sdir,
+                                            bound, ulen, eq.RTOL * load)
+            if not comm.allreduce(changes, op=MPI.SUM):
+                break
+            active = (active & ~release) | add
+            stick[add] = True
+            U.destroy()
+        else:
+            raise eq.StaticStartError(f"{who}: the static contact problem found no active set in {eq.MAX_ITER} "
+                                      f"changes")
+    finally:
+        L.destroy()
+        for h in H:
+            h.destroy()
     return U
+
+
+def _vec(M, values):
+    """A PETSc vector of M's row layout holding ``values`` (this rank's rows)."""
+    v = M.createVecLeft()
+    v.array[:] = values
+    return v
+
+
+def _rows(M, U):
+    """M U at this rank's rows (a copy)."""
+    y = M.createVecLeft()
+    M.mult(U, y)
+    out = y.array_r.copy()
+    y.destroy()
+    return out
 
 
 def _rows_times(G, R):
@@ -81,69 +150,104 @@ def _rows_times(G, R):
     return out
 
 
-def _free_or_refuse(d, R, GR, names, fixed, active, L, who, load):
-    """(the free rigid motions N, owned rows x m; the dofs to pin) when the active rows and the ``fixed``
-    (Dirichlet) dofs hold the body; StaticStartError when the load works along a free motion."""
+def _free_or_refuse(d, R, CR, names, fixed, masks, b, law, who, load):
+    """(the free rigid motions N, owned rows x m; the dofs to pin) when the rows of C (each matrix's rows
+    R-products ``CR`` under its mask) and the ``fixed`` (Dirichlet) dofs hold the body; StaticStartError
+    when the load ``b`` works along a free motion."""
     comm, nloc = d.comm, len(fixed)
     if not R.shape[1]:
         return np.zeros((nloc, 0)), np.zeros(0, dtype=np.int64)
-    Rf, Ga = R[fixed], GR[active]
-    gram = comm.allreduce(Rf.T @ Rf + Ga.T @ Ga, op=MPI.SUM)
-    w, v = np.linalg.eigh(gram)
+    Rf = R[fixed]
+    gram = Rf.T @ Rf + sum(c[mask].T @ c[mask] for c, mask in zip(CR, masks))
+    w, v = np.linalg.eigh(comm.allreduce(gram, op=MPI.SUM))
     coef = v[:, w < eq.FREE_TOL]
     if not coef.size:
         return np.zeros((nloc, 0)), np.zeros(0, dtype=np.int64)
     N = R @ coef
-    work = comm.allreduce(N.T @ L.array, op=MPI.SUM)
+    work = comm.allreduce(N.T @ b.array, op=MPI.SUM)
     bad = np.flatnonzero(np.abs(work) > eq.RTOL * load * np.sqrt(comm.allreduce(nloc, op=MPI.SUM)))
     if bad.size:
         j = bad[np.argmax(np.abs(work[bad]))]
         name = names[int(np.argmax(np.abs(coef[:, j])))]
+        held = ("the active contact, friction (weighted gap) and Dirichlet data do not fix" if law != "none"
+                else "neither the active contact (frictionless, weighted gap) nor Dirichlet data fix")
         raise eq.StaticStartError(
-            f"{who}: no static equilibrium: neither the active contact (frictionless, weighted gap) nor Dirichlet "
-            f"data fix {name}, and the load works along it (the body would lift off or slide: "
-            f"{comm.allreduce(len(active), op=MPI.SUM)} rows, {comm.allreduce(int(active.sum()), op=MPI.SUM)} in "
-            f"contact); hold it (Dirichlet data) or start from rest")
+            f"{who}: no static equilibrium: {held} {name}, and the load works along it (the body would "
+            f"{'lift off or slide' if law == 'none' else 'lift off or slip'}: "
+            f"{comm.allreduce(len(masks[0]), op=MPI.SUM)} rows, {comm.allreduce(int(masks[0].sum()), op=MPI.SUM)} "
+            f"in contact); hold it ({'friction, ' if law == 'none' else ''}Dirichlet data) or start from rest")
     return N, eq.pin_dofs(N, fixed, comm)
 
 
-def _solve(d, G, g, active, L, pins):
-    """(U, mu): the saddle-point system of the module's docstring for the ``active`` rows, the Dirichlet
-    dofs and the ``pins`` (U = 0) eliminated; mu on this rank's rows (0 off the active set)."""
+def _solve(d, Cs, cs, masks, b, pins, blocks=()):
+    """(U, [mu per matrix]): the saddle-point system of the module's docstring with C the rows of the
+    matrices ``Cs`` under ``masks`` (values ``cs``), the Dirichlet dofs and the ``pins`` (U = 0)
+    eliminated; ``blocks`` [(row i, B)]: B_kl H_k[i]^T H_l[i] added to A (Cs[1:] are the H_k). Each mu on
+    this rank's rows (0 off its mask)."""
     comm = d.comm
-    r0 = G.getOwnershipRange()[0]
-    rows = PETSc.IS().createGeneral((r0 + np.flatnonzero(active)).astype(PETSc.IntType), comm=comm)
-    w0, nw = G.getOwnershipRangeColumn()[0], G.getLocalSize()[1]
+    w0, nw = Cs[0].getOwnershipRangeColumn()[0], Cs[0].getLocalSize()[1]
     cols = PETSc.IS().createStride(nw, w0, 1, comm=comm)
-    Ga = G.createSubMatrix(rows, cols)
-    Ga.scale(-1.0)
-    GaT = Ga.transpose(PETSc.Mat())
-    nest = PETSc.Mat().createNest([[d.A, GaT], [Ga, None]], comm=comm)
+    subs = []
+    for C, mask in zip(Cs, masks):
+        r0 = C.getOwnershipRange()[0]
+        rows = PETSc.IS().createGeneral((r0 + np.flatnonzero(mask)).astype(PETSc.IntType), comm=comm)
+        sub = C.createSubMatrix(rows, cols)
+        sub.scale(-1.0)
+        subs.append(sub)
+        rows.destroy()
+    Cm = PETSc.Mat().createNest([[s] for s in subs], comm=comm)
+    Ca = Cm.convert("aij")
+    CaT = Ca.transpose(PETSc.Mat())
+    A = d.A
+    if comm.allreduce(len(blocks), op=MPI.SUM):     # collective: a rank without slipping rows assembles too
+        A = d.A.copy()
+        A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+        _add_blocks(A, Cs[1:], blocks)
+    nest = PETSc.Mat().createNest([[A, CaT], [Ca, None]], comm=comm)
     K = nest.convert("aij")
-    na = Ga.getLocalSize()[0]
-    # the nest's layout: on each rank its W rows, then its active rows
+    na = Ca.getLocalSize()[0]
     k0 = K.getOwnershipRange()[0]
-    b, sol = K.createVecLeft(), K.createVecRight()
-    b.array[:nw] = L.array_r
-    b.array[nw:] = -g[active]
+    rhs, sol = K.createVecLeft(), K.createVecRight()
+    rhs.array[:nw] = b.array_r
+    rhs.array[nw:] = -np.concatenate([c[mask] for c, mask in zip(cs, masks)])
     fix = np.concatenate([d.ddofs, pins]).astype(np.int64)
     x0 = K.createVecRight()
     x0.array[d.ddofs] = d.g.x.array[d.ddofs]
-    K.zeroRowsColumns((k0 + fix).astype(PETSc.IntType), 1.0, x0, b)
+    K.zeroRowsColumns((k0 + fix).astype(PETSc.IntType), 1.0, x0, rhs)
     ksp = PETSc.KSP().create(comm)
     ksp.setOperators(K)
     ksp.setType("preonly")
     ksp.getPC().setType("lu")
     ksp.getPC().setFactorSolverType("mumps")
-    ksp.solve(b, sol)
+    ksp.solve(rhs, sol)
     reason = ksp.getConvergedReason()
     U = d.A.createVecRight()
     U.array[:] = sol.array_r[:nw]
-    mu = np.zeros(len(g))
-    mu[active] = sol.array_r[nw:nw + na]
-    for obj in (ksp, K, nest, Ga, GaT, rows, cols, b, sol, x0):
+    mus, pos = [], nw
+    for c, mask in zip(cs, masks):
+        mu = np.zeros(len(c))
+        mu[mask] = sol.array_r[pos:pos + int(mask.sum())]
+        pos += int(mask.sum())
+        mus.append(mu)
+    for obj in (ksp, K, nest, Cm, Ca, CaT, cols, rhs, sol, x0, *subs):
         obj.destroy()
-    if reason <= 0 or not np.all(np.isfinite(U.array_r)):
+    if A is not d.A:
+        A.destroy()
+    if reason <= 0 or not np.all(np.isfinite(U.array_r)) or pos != nw + na:
         raise eq.StaticStartError(f"{d.problem.name!r}: u0 = 'equilibrium': the static problem with the weighted "
                                   f"gap is singular (KSP reason {reason}): start from a u0 of your own")
-    return U, mu
+    return U, mus
+
+
+def _add_blocks(A, H, blocks):
+    """A += sum over the (row i, B) of ``blocks`` of sum_kl B_kl H_k[i]^T H_l[i] (this rank's rows i of the
+    tangential row matrices ``H``; the products' entries may be other ranks' rows: added, assembled)."""
+    r0 = H[0].getOwnershipRange()[0]
+    for i, B in blocks:
+        rows = [H[k].getRow(r0 + i) for k in range(len(H))]
+        for k, (ck, vk) in enumerate(rows):
+            for j, (cj, vj) in enumerate(rows):
+                if B[k, j] != 0.0:
+                    A.setValues(ck.astype(PETSc.IntType), cj.astype(PETSc.IntType),
+                                np.ascontiguousarray(B[k, j] * np.outer(vk, vj)), addv=PETSc.InsertMode.ADD_VALUES)
+    A.assemble()

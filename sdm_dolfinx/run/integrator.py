@@ -142,7 +142,7 @@ class Integrator:
             scale = a if a is not None and a * a == c_M else np.sqrt(c_M)
             self.factor_matrix = sparse_factor_matrix(self.K, d.A, d.B, d.c_lumped, scale, d.ddofs)
         self.slip = None
-        gap_rows = (d.obstacle_rows is not None and self.friction is None) or d.weighted_rows is not None
+        gap_rows = (d.obstacle_rows is not None or d.weighted_rows is not None) and self.friction is None
         if gap_rows and self.contact == "exact":            # G x >= g (method/gap_solver.py)
             self.solver, self.linear_strategy, self.linear_reason = gap_solver(
                 d, self.K, vi_solver, not self.block, options, self.factor_matrix)

@@ -80,7 +80,7 @@ def rotation(A, dofs, Q, T=None):
 
 class NodeFrames:
     """The frames' side of :class:`~sdm_dolfinx.solvers.friction_newton.FrictionalNewton` (a mixin:
-    it uses the solver's ``frames``, ``m``, ``ndofs``, ``tdofs``, ``lb`` and ``system``)."""
+    it uses the solver's ``frames``, ``rowwise``, ``m``, ``ndofs``, ``tdofs``, ``lb`` and ``system``)."""
 
     def set_rows(self, normals, lb):
         """Frames (see the class): the unit normals (m x k, Cartesian) and the lower bounds of
@@ -92,10 +92,13 @@ class NodeFrames:
 
     def _components(self, u):
         """The values of the node's frame components of the owned array u at this rank's contact
-        nodes: (normal (m,), tangential (m,) or (m, 2))."""
-        if not self.frames:
+        nodes: (normal (m,), tangential (m,) or (m, 2)); rows: the rows' values (collective)."""
+        if self.rowwise:
+            y = self.system.values(u)
+        elif not self.frames:
             return u[self.ndofs], u[self.tdofs]
-        y = self.system.rotate(np.asarray(u)[self.system.cdofs])
+        else:
+            y = self.system.rotate(np.asarray(u)[self.system.cdofs])
         m = self.m
         return y[:m], (y[m:] if self.tdofs.ndim == 1 else y[m:].reshape(2, m).T)
 

@@ -66,6 +66,7 @@ import numpy as np
 from sdm_dolfinx.solvers.base import MurtyRule, VIError
 from sdm_dolfinx.solvers.factorisation import Factorisation
 from sdm_dolfinx.solvers.friction_frames import NodeFrames
+from sdm_dolfinx.solvers.friction_rows import RowColumns, RowSystem
 from sdm_dolfinx.solvers.friction_system import FrictionSystem
 from sdm_dolfinx.solvers.options import instance_prefix, scoped_options, vi_tolerances
 
@@ -113,6 +114,9 @@ class FrictionalNewton(NodeFrames):
         max_it: Newton iterations per step (and Tresca solves of the fixed point); 500 as
             for the frictionless solver (Murty's rule took 188 on a block pulled off the
             plane under Tresca friction).
+        rows: ``(R, offset)`` of :func:`~sdm_dolfinx.solvers.friction_rows.rows_matrix`: the normal and
+            tangential "dofs" are this rank's rows of R (the weighted gap), ``lb`` their bounds;
+            ``ndofs`` and ``tdofs`` name the rows' vertices (their own dofs).
         frames: the obstacle's normal turns from node to node and step to step (a curved or
             tilted obstacle): ``ndofs`` and ``tdofs`` are then each node's Cartesian dofs
             (components 0, then 1 (and 2)), and :meth:`set_rows` gives the normals and bounds
@@ -126,9 +130,11 @@ class FrictionalNewton(NodeFrames):
 
     def __init__(self, K, ndofs, tdofs, lb, law="tresca", mu=None, threshold=None, coulomb="auto",
                  c_t=0.0, symmetric_positive=True, prefix=None, options=None,
-                 factor_matrix=None, rtol=1e-10, max_it=500, frames=False):
+                 factor_matrix=None, rtol=1e-10, max_it=500, frames=False, rows=None):
         self.K, self.comm = K, K.getComm().tompi4py()
         self.frames = bool(frames)
+        #: the conditions are on rows of a matrix (the weighted gap: :mod:`.friction_rows`)
+        self.rowwise = rows is not None
         self.ndofs = np.asarray(ndofs, dtype=np.int32)
         self.tdofs = np.asarray(tdofs, dtype=np.int32)
         self.lb = np.asarray(lb, dtype=float)
@@ -146,10 +152,17 @@ class FrictionalNewton(NodeFrames):
             self.rtol, self.max_it, self.monitor = vi_tolerances(scope, rtol, max_it)
             self.fac = Factorisation(K, symmetric_positive, self.prefix + "factor_", aug=factor_matrix)
         # the contact dofs: normal, then each tangential component (3-D: tdofs is m x 2)
-        self.system = FrictionSystem(K, np.concatenate([self.ndofs, self.tdofs.T.reshape(-1)]), self.fac)
+        if self.rowwise:
+            R, offset = rows
+            self.system = RowSystem(K, R, offset, m * (1 + (self.tdofs.shape[1] if self.tdofs.ndim == 2 else 1)),
+                                    self.fac)
+            #: what a restart replays of the cached columns (``run.solver_state``: by dof)
+            self.rows = RowColumns(self.system)
+        else:
+            self.system = FrictionSystem(K, np.concatenate([self.ndofs, self.tdofs.T.reshape(-1)]), self.fac)
         diag = K.getDiagonal()
         self.c_n, self.k_t = (self._mean(diag.array_r[dofs]) for dofs in (self.ndofs, self.tdofs))
-        if self.frames:                 # the frame's axes mix the components: one scale for all
+        if self.frames or self.rowwise:     # the frame's axes (rows) mix the components: one scale for all
             self.c_n = self.k_t = self._mean(diag.array_r[self.system.cdofs])
         diag.destroy()
         self.lam, self.lam_t = np.zeros(m), np.zeros(self.tdofs.shape)
@@ -240,7 +253,10 @@ class FrictionalNewton(NodeFrames):
 
     def _impose(self, xa, xref):
         """The converged conditions exactly (not to round-off) in the owned array xa: x_n = lb on the
-        active set, x_t = xref on the stick set (frames: in the node's frame, rotated back)."""
+        active set, x_t = xref on the stick set (frames: in the node's frame, rotated back; rows: nothing,
+        a row's value combines several dofs)."""
+        if self.rowwise:
+            return
         if not self.frames:
             xa[self.ndofs[self.active]] = self.lb[self.active]
             xa[self.tdofs[self.stick]] = xref[self.stick]

@@ -205,7 +205,7 @@ class FrictionSystem:
         """
         forced = ~fixed & ((a != 0.0) | (c != 0.0))
         (gF, offF, W), (gJ, _, ZJ) = self._columns(fixed, forced)
-        pos = np.full(len(self.cdofs), -1, dtype=np.int64)     # global position among the fixed
+        pos = np.full(len(fixed), -1, dtype=np.int64)          # global position among the fixed
         pos[fixed] = offF + np.arange(np.count_nonzero(fixed))
         aJ, _ = self._gather(a[forced])
         cJ, _ = self._gather(c[forced])
@@ -221,7 +221,7 @@ class FrictionSystem:
             raise VIError(f"the frictional Newton system on {len(gF)} fixed contact dofs is singular "
                           "(Coulomb with a large friction coefficient?)") from None
         xc = xc_known + W @ rF
-        r = np.zeros(len(self.cdofs))
+        r = np.zeros(len(fixed))
         r[fixed] = rF[offF:offF + np.count_nonzero(fixed)]
         r[forced] = a[forced] + c[forced] * r[partner[forced]]
         self._last = r

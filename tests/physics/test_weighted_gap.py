@@ -20,9 +20,10 @@
   ranks (a measure counted twice on the ranks' shared vertices made it 6 % high on 2 ranks before).
 * What the weighted rows do not take is refused in one line: 1-D (the rows would be the vertex
   constraint), a problem without contact facets (the membrane: its constraint is inside the domain),
-  obstacles or a moving bound, friction, the Nitsche treatment, the disc's own equilibrium start (the
-  penalty treatment takes the weighted rows: test_penalty_gap_rows.py; the equilibrium start of a
-  problem file and of the block: test_equilibrium_start.py).
+  obstacles or a moving bound, the Nitsche treatment, the disc's own equilibrium start (the penalty
+  treatment takes the weighted rows: test_penalty_gap_rows.py; the equilibrium start of a problem file
+  and of the block: test_equilibrium_start.py; friction: test_friction_closed_forms.py and
+  tests/unit/test_friction_rows.py).
 * **An initial state is checked against the rows themselves**: a face that is above the foundation on
   average around every vertex but below it at P2's mid-edge nodes is admissible for the weighted gap
   and refused for the node constraint (it was refused as "below the bound at every constrained node").
@@ -72,7 +73,6 @@ def test_weighted_rows_do_not_mend_an_ill_posed_pair(pair):
 @pytest.mark.parametrize("make,given,words", [
     (lambda: rod1d.problem(COMM), {}, "in 1-D"),
     (lambda: membrane.problem(COMM, N=6), {}, "no contact facet"),
-    (lambda: block.problem(COMM, nx=4, ny=2, start="rest"), dict(friction="coulomb", friction_options={"mu": 0.3}), "friction"),
     (lambda: block.problem(COMM, nx=4, ny=2, start="rest"), dict(contact="nitsche"), "contact 'nitsche'"),
     (lambda: disc.problem(COMM, start="equilibrium", height=0.0, v0=0.0), {}, "disc --start equilibrium: no static "
      "solution with the constraint as the weighted gap"),
