@@ -25,8 +25,8 @@ from sdm_dolfinx.mpiutil import atomic_write_text, json_text
 from sdm_dolfinx.post import metrics as cm
 from sdm_dolfinx.problems import ProblemInputError, get as get_problem
 from sdm_dolfinx.run import Interrupted, RunInputError, grouped, num_steps, plan, simulate
+from sdm_dolfinx.run.boundary_sink import BoundaryGapWarning
 from sdm_dolfinx.run.linear_range import LinearRangeWarning
-from sdm_dolfinx.run.result import BoundaryGapWarning
 from sdm_dolfinx.run import SolverSetupError
 
 COMM = MPI.COMM_WORLD

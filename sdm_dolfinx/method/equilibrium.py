@@ -55,7 +55,7 @@ from sdm_dolfinx.method import static_rows
 from sdm_dolfinx.method.static_frame import ObstacleFrame
 from sdm_dolfinx.method.static_parts import (MAX_ITER, RESIDUAL_TOL, RTOL, StaticStartError,  # noqa: F401 (public)
                                              free_motions, kernel_basis, load_at_zero, no_rigid_displacement,
-                                             pin_dofs, stick_or_slip)
+                                             lu_solve, pin_dofs, stick_or_slip)
 from sdm_dolfinx.problems.base import EQUILIBRIUM as EQUILIBRIUM  # noqa: F401  (the value of u0 asking for it)
 from sdm_dolfinx.problems.base import label
 
@@ -91,14 +91,8 @@ def _solve_fixed(A, L, dofs, values, comm, blocks=()):
         K.setValues(g, g, np.asarray(block, dtype=PETSc.ScalarType), addv=PETSc.InsertMode.ADD_VALUES)
     K.assemble()
     K.zeroRowsColumns(rows, 1.0, x0, b)
-    ksp = PETSc.KSP().create(comm)
-    ksp.setOperators(K)
-    ksp.setType("preonly")
-    ksp.getPC().setType("lu")
-    ksp.getPC().setFactorSolverType("mumps")
-    ksp.solve(b, u)
-    reason = ksp.getConvergedReason()
-    ksp.destroy(), K.destroy(), b.destroy(), x0.destroy()
+    reason = lu_solve(K, b, u)
+    K.destroy(), b.destroy(), x0.destroy()
     return u, reason
 
 
@@ -119,8 +113,7 @@ def static_displacement(d, friction=None, contact="exact"):
             rigid motion along which the load works (a body that would lift off, slide or slip as a
             whole), a matrix singular otherwise, no active set in :data:`MAX_ITER` changes.
     """
-    p, comm = d.problem, d.comm
-    who = f"{label(p)}: u0 = 'equilibrium'"
+    who = f"{label(d.problem)}: u0 = 'equilibrium'"
     if contact != "exact":
         raise StaticStartError(f"{who} is the exact Signorini equilibrium, and contact {contact!r} penetrates the "
                                f"obstacle at rest: start from a u0 of your own (or contact 'exact')")

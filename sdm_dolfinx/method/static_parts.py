@@ -173,3 +173,16 @@ def stick_or_slip(friction, lam_n, lam_t, ut, measure, active, stick, sdir, boun
     stick[to_slip], stick[to_stick] = False, True
     bound[:] = new
     return int(to_slip.sum() + to_stick.sum() + moved.sum())
+
+
+def lu_solve(K, b, u):
+    """u = K^-1 b by MUMPS's LU (one factorisation, destroyed after); the KSP's converged reason."""
+    ksp = PETSc.KSP().create(K.getComm())
+    ksp.setOperators(K)
+    ksp.setType("preonly")
+    ksp.getPC().setType("lu")
+    ksp.getPC().setFactorSolverType("mumps")
+    ksp.solve(b, u)
+    reason = ksp.getConvergedReason()
+    ksp.destroy()
+    return reason

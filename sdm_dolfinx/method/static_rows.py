@@ -214,13 +214,7 @@ def _solve(d, Cs, cs, masks, b, pins, blocks=()):
     x0 = K.createVecRight()
     x0.array[d.ddofs] = d.g.x.array[d.ddofs]
     K.zeroRowsColumns((k0 + fix).astype(PETSc.IntType), 1.0, x0, rhs)
-    ksp = PETSc.KSP().create(comm)
-    ksp.setOperators(K)
-    ksp.setType("preonly")
-    ksp.getPC().setType("lu")
-    ksp.getPC().setFactorSolverType("mumps")
-    ksp.solve(rhs, sol)
-    reason = ksp.getConvergedReason()
+    reason = eq.lu_solve(K, rhs, sol)
     U = d.A.createVecRight()
     U.array[:] = sol.array_r[:nw]
     mus, pos = [], nw
@@ -229,7 +223,7 @@ def _solve(d, Cs, cs, masks, b, pins, blocks=()):
         mu[mask] = sol.array_r[pos:pos + int(mask.sum())]
         pos += int(mask.sum())
         mus.append(mu)
-    for obj in (ksp, K, nest, Cm, Ca, CaT, cols, rhs, sol, x0, *subs):
+    for obj in (K, nest, Cm, Ca, CaT, cols, rhs, sol, x0, *subs):
         obj.destroy()
     if A is not d.A:
         A.destroy()

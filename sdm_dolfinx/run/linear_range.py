@@ -108,9 +108,10 @@ class LinearRange:
         """A :class:`LinearRangeWarning` on rank 0, once, when the run left the range (collective-free)."""
         said = []
         for k, (what, tol, unit) in enumerate((("rotated", ROTATION_TOL, " rad"), ("strained", STRAIN_TOL, ""))):
-            if self.where[k] is None:
+            reached = self.where[k]
+            if reached is None:
                 continue
-            n, t, x = self.where[k]
+            n, t, x = reached
             at = ", ".join(f"{c:.6g}" for c in x)
             said.append(f"a cell {what} by {self.largest[k]:.3g}{unit} (step {n}, t = {t:.6g}, at ({at}); "
                         f"tolerance {tol:g})")

@@ -13,8 +13,12 @@ import numpy.typing as npt
 from sdm_dolfinx.contact import friction as _friction
 from sdm_dolfinx.errors import StepError
 from sdm_dolfinx.method import gaps, moving_bound
-from sdm_dolfinx.run.boundary_sink import (BOUNDARY_GAP, BOUNDARY_GAP_FLOOR, BOUNDARY_GAP_TOL,  # noqa: F401 (public here)
-                                           BOUNDARY_SINK_RTOL, BoundaryGapWarning, BoundarySink)
+from sdm_dolfinx.run.boundary_sink import BOUNDARY_GAP, BoundarySink
+# public here too (tests and users import them from this module)
+from sdm_dolfinx.run.boundary_sink import BOUNDARY_GAP_FLOOR as BOUNDARY_GAP_FLOOR  # noqa: F401
+from sdm_dolfinx.run.boundary_sink import BOUNDARY_GAP_TOL as BOUNDARY_GAP_TOL  # noqa: F401
+from sdm_dolfinx.run.boundary_sink import BOUNDARY_SINK_RTOL as BOUNDARY_SINK_RTOL  # noqa: F401
+from sdm_dolfinx.run.boundary_sink import BoundaryGapWarning as BoundaryGapWarning  # noqa: F401
 from sdm_dolfinx.run.linear_range import LinearRange
 
 if TYPE_CHECKING:
@@ -189,7 +193,7 @@ class TimeSeries:
             row["obstacle_work"] = before + (step or {}).get("obstacle_work", 0.0)
         if "obstacle_probe" in self.columns:
             row["obstacle_probe"] = self.cprobe.at(self.discretisation.lb)
-        if BOUNDARY_GAP in self.columns:
+        if self.boundary_sink is not None:          # the column BOUNDARY_GAP
             row[BOUNDARY_GAP] = gaps.boundary_gap(self.discretisation, U.array_r, t)
             self.boundary_sink.track(n, t, U, row[BOUNDARY_GAP])
         if self.linear_range is not None:
