@@ -157,14 +157,34 @@ def contact_dofs(discretisation, friction):
     return tdofs, thresholds
 
 
+def slip_reference(integ, u):
+    """The step's reference of the slip, ``xref_t`` of the frictional solver: the tangential components
+    of U^n = ``u``; against a moving obstacle plus its own tangential displacement at the scheme's
+    constraint time (the part ``bound_weight`` of the step's, as its rows take the obstacle: the midpoint's
+    half), so that the slip is measured against the obstacle's surface, not the fixed frame."""
+    ref = integ.solver.tangential(u)
+    rows = integ.discretisation.obstacle_rows
+    if rows is not None and rows.moves:
+        ref = ref + integ.time_scheme.bound_weight * integ.solver.frame_tangential(rows.carried)
+    return ref
+
+
 def step_info(integ, info, u, un):
     """The frictional step's tangential force, slip (U^{n+1} - U^n at the tangential dofs, kept as
-    ``integ.slip_t``) and friction work lam_T . (U^{n+1} - U^n)_t (<= 0), reduced over the ranks,
-    into ``info`` (3-D: the force's size and its components ``tangential_force_t``; ``integ.slip``
-    per vertex its size); ``integ`` is the run's Integrator."""
+    ``integ.slip_t``; against a moving obstacle less the obstacle's own tangential displacement: the
+    relative slip) and friction work lam_T . slip (<= 0: what friction dissipates), reduced over the
+    ranks, into ``info`` (3-D: the force's size and its components ``tangential_force_t``; ``integ.slip``
+    per vertex its size); against a moving obstacle also ``obstacle_friction_work``, the work of the
+    friction force on the obstacle's motion, lam_T . (its tangential displacement). ``integ`` is the
+    run's Integrator."""
     comm = integ.discretisation.comm
     integ.slip_t = integ.solver.tangential(u) - integ.solver.tangential(un)
+    rows = integ.discretisation.obstacle_rows
     lam_t = integ.solver.lam_t
+    if rows is not None and rows.moves:
+        carried = integ.solver.frame_tangential(rows.carried)
+        integ.slip_t = integ.slip_t - carried
+        info["obstacle_friction_work"] = comm.allreduce(float(np.sum(lam_t * carried)), op=MPI.SUM)
     if lam_t.ndim == 1:
         integ.slip = integ.slip_t
         force, work = comm.allreduce(np.array([np.sum(lam_t), np.dot(lam_t, integ.slip)]), op=MPI.SUM)

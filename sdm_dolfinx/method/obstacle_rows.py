@@ -80,9 +80,6 @@ def refusal(integ: Any, scheme: Any, vi_solver: str, linear: str) -> Optional[st
         return f"{what}, which contact {integ.contact!r} does not take yet: use contact {' or '.join(map(repr, takes))}"
     if integ.contact != "exact" and d.obstacle_rows is not None and d.obstacle_rows.moves:
         return f"{what} that move, which contact {integ.contact!r} does not take yet: use contact 'exact'"
-    if integ.friction is not None and d.obstacle_rows is not None and d.obstacle_rows.moves:
-        return (f"{what} that move, and friction against a moving obstacle is not built yet (the slip would be "
-                f"measured in the fixed frame, not against the obstacle's surface): frictionless, or a fixed obstacle")
     snes = vi_solver in ("vinewtonrsls", "vinewtonssls") and d.obstacle_rows is not None
     if snes and (integ.contact != "exact" or integ.friction is not None or linear not in ("auto", "lu")):
         return (f"{what}: vi_solver {vi_solver!r} takes the exact frictionless contact with linear 'auto' or 'lu' "
@@ -140,6 +137,9 @@ class ObstacleRows:
                                       f"cylinders along z, wedges with n1_z = n2_z = 0 and surface meshes of lines")
         self._y: Optional[Array] = None
         self._t: tuple[float, float] = (0.0, 0.0)
+        #: (m, gdim) the nearest obstacle's own displacement over the last :meth:`rows`' step at each
+        #: constrained node (its material point there at t0, carried to t1; zeros when nothing moves)
+        self.carried = np.zeros((len(self.dofs), self.gdim))
 
     def require_free(self, what: str) -> None:
         """Refuse (one line, collective) ``what`` where a constrained node has a Dirichlet component: the
@@ -190,7 +190,11 @@ class ObstacleRows:
         self._y, self._t = self._at(self.x, self.dofs, u), (t0, t1)
         if not len(self.dofs):
             return np.zeros((0, self.gdim)), np.zeros(0)
-        phi, nrm, _ = nearest(self.obstacles, self._y, t0, weight if self.moves else None, t1)
+        phi, nrm, which = nearest(self.obstacles, self._y, t0, weight if self.moves else None, t1)
+        if self.moves:
+            for k, ob in enumerate(self.obstacles):
+                at = which == k
+                self.carried[at] = (ob.carry(self._y[:, at], t0, t1) - self._y[:, at])[:self.gdim].T
         coef: Array = np.ascontiguousarray(nrm[:self.gdim].T) * self.free.astype(float)
         g = np.einsum("ik,ik->i", coef, u[self.dofs]) - phi
         g[~np.any(coef != 0.0, axis=1)] = -np.inf          # every component fixed: nothing to hold

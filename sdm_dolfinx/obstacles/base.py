@@ -179,6 +179,11 @@ class Obstacle:
         v: Array = self._shift_rate(float(t))[:, None] + self._omega * np.vstack([-r[1], r[0], 0.0 * r[2]])  # w e_z x r
         return v
 
+    def carry(self, x: Any, t0: float, t1: float) -> Array:
+        """Where (3, n) the obstacle's material points at x at the time t0 are at the time t1 (x itself if
+        it is fixed): the obstacle's own displacement there, which a friction slip is measured against."""
+        return self._from_reference(self._to_reference(points(x), float(t0)), float(t1))
+
     def describe(self) -> dict[str, Any]:
         """JSON-able: kind, parameters, motion ("fixed" or what moves it)."""
         motion: Any = {} if self.moves else "fixed"

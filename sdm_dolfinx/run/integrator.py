@@ -266,7 +266,7 @@ class Integrator:
             if self.friction is None:
                 info = self.solver.solve(b, X)
             else:
-                info = self.solver.solve(b, X, self.solver.tangential(U.array_r))
+                info = self.solver.solve(b, X, _friction.slip_reference(self, U.array_r))
         except VIError as e:
             raise StepError(f"step {n + 1} (t = {t + self.dt:.6g}): {e}{_friction_bound.step_hint(self)}") from None
         comm = d.comm
@@ -286,6 +286,8 @@ class Integrator:
             _friction.step_info(self, info, U.array, Un)
         if rows is not None:                # the true signed distance at t_{n+1}, and the obstacles' work
             rows.after_step(info, U.array_r, t1, self.lam)
+            if "obstacle_friction_work" in info:        # the friction force's on the moving obstacle too
+                info["obstacle_work"] += info.pop("obstacle_friction_work")
         else:
             info["gap_end"] = comm.allreduce(float(np.min(U.array[d.cdofs] - d.lb, initial=np.inf)), op=MPI.MIN)
         return info

@@ -107,6 +107,12 @@ class NodeFrames:
         contact nodes: the reference ``xref_t`` of :meth:`solve` and the slip's ends (a copy)."""
         return np.array(self._components(u)[1], dtype=float)
 
+    def frame_tangential(self, vectors):
+        """Frames: the tangential components (m, or m x 2, along each node's t, or t1 and t2) of the
+        Cartesian vectors (m x k) at the nodes (an obstacle's own displacement there)."""
+        y = np.einsum("ikc,ic->ik", self.system.Q, np.asarray(vectors, dtype=float))[:, 1:]
+        return y[:, 0].copy() if self.tdofs.ndim == 1 else y
+
     def cartesian(self, tangential):
         """3-D frames: the tangential vectors (m x 2, along each node's t1, t2) as Cartesian ones (m x 3);
         without frames, or in 2-D, ``tangential`` itself (before the first step's frames: zeros)."""

@@ -14,7 +14,8 @@ rolling in the bowl with Coulomb friction (mu = 0.5: the frictional solver in ea
 stick and slip sets and multipliers restored as for the unit rows); the built-in block sliding with
 Coulomb friction on the weighted gap (mu = 0.3, v0 = 100 mm/s, stopped at step 40 of 70: the solver on
 rows, its face dofs' columns recorded by dof; without its stick/slip state restored the test fails, watched;
-without the columns' replay it passes, since that solver's x comes from one more solve per step).
+without the columns' replay it passes, since that solver's x comes from one more solve per step); a block
+dragged by a conveyor belt (friction against a moving obstacle, stopped at step 150 of 300 while it slips).
 """
 import json
 from pathlib import Path
@@ -29,15 +30,40 @@ from sdm_dolfinx.run import simulate
 
 COMM = MPI.COMM_WORLD
 RTOL = {"bowl": 0.0 if COMM.size == 1 else 1e-6, "weighted": 0.0 if COMM.size == 1 else 1e-9,
-        "bowl-coulomb": 0.0 if COMM.size == 1 else 1e-6, "weighted-coulomb": 0.0 if COMM.size == 1 else 1e-6}
+        "bowl-coulomb": 0.0 if COMM.size == 1 else 1e-6, "weighted-coulomb": 0.0 if COMM.size == 1 else 1e-6,
+        "belt-coulomb": 0.0 if COMM.size == 1 else 1e-6}
 DEMOS = Path(__file__).resolve().parents[2] / "demos"
+
+
+def _belt():
+    """A block (20 x 10 mm, 8 x 4 cells, E = 1000, nu = 0) at rest at its equilibrium on a floor moving
+    along x at 100 mm/s."""
+    import ufl
+    from dolfinx import fem, mesh as dmesh
+    from petsc4py import PETSc
+    from sdm_dolfinx.obstacles import HalfSpace
+    from sdm_dolfinx.problems import Problem
+    msh = dmesh.create_rectangle(COMM, [np.zeros(2), np.array([20.0, 10.0])], [8, 4], dmesh.CellType.triangle)
+    bottom = lambda x: np.isclose(x[1], 0.0)                                # noqa: E731
+    facets = np.sort(dmesh.locate_entities_boundary(msh, 1, bottom)).astype(np.int32)
+    ds_c = ufl.Measure("ds", domain=msh, subdomain_data=dmesh.meshtags(msh, 1, facets, np.ones_like(facets)))(1)
+    eps = lambda u: ufl.sym(ufl.grad(u))                                     # noqa: E731
+    g = fem.Constant(msh, PETSc.ScalarType((0.0, -9810.0)))
+    zero = lambda x: np.zeros((2, x.shape[1]))                               # noqa: E731
+    return Problem(name="belt", mesh=msh, shape=(2,), rho=1e-6, u0="equilibrium", v0=zero,
+                   a=lambda u, w: 1000.0 * ufl.inner(eps(u), eps(w)) * ufl.dx,
+                   l=lambda w: 1e-6 * ufl.inner(g, w) * ufl.dx,
+                   constraint_vertices=lambda m: dmesh.locate_entities_boundary(m, 0, bottom),
+                   constraint_component=1, constraint_measure=lambda q: q * ds_c, lower_bound=None,
+                   obstacles=[HalfSpace((0.0, 0.0), (0.0, 1.0), motion=lambda t: (100.0 * t, 0.0, 0.0))],
+                   extra_columns=("contact_force", "momentum_x"))
 
 
 def _csv(path):
     return np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
 
 
-@pytest.mark.parametrize("case", ["bowl", "weighted", "bowl-coulomb", "weighted-coulomb"])
+@pytest.mark.parametrize("case", ["bowl", "weighted", "bowl-coulomb", "weighted-coulomb", "belt-coulomb"])
 def test_a_run_with_gap_rows_restarts_exactly(case, mpi_tmp_path):
     if case.startswith("bowl"):
         spec = load_file(DEMOS / "bowl_problem.py")
@@ -45,6 +71,9 @@ def test_a_run_with_gap_rows_restarts_exactly(case, mpi_tmp_path):
         make, kw, stop = (lambda: spec.problem(COMM)), dict(pair="P1+/P0", dt=T0 / 1000, T=120 * T0 / 1000), 60
         if case == "bowl-coulomb":      # friction in each node's frame: the stick/slip sets restored too
             kw.update(friction="coulomb", friction_options={"mu": 0.5})
+    elif case == "belt-coulomb":        # friction against a moving obstacle: the slip's reference carried
+        make, stop = _belt, 150
+        kw = dict(pair="P1+/P0", dt=1e-4, T=0.03, friction="coulomb", friction_options={"mu": 0.3})
     elif case == "weighted-coulomb":    # friction on the weighted gap's rows: its columns by dof, its sets
         make, stop = (lambda: block.problem(COMM, v0=100.0)), 40
         kw = dict(pair="P2/P1", constrain="weighted", dt=1e-4, T=7e-3, friction="coulomb",
@@ -64,7 +93,7 @@ def test_a_run_with_gap_rows_restarts_exactly(case, mpi_tmp_path):
         header = (mpi_tmp_path / "ref" / "timeseries.csv").read_text().splitlines()[0].split(",")
         force = a[:, header.index("contact_force")]
         assert force[stop - 5:stop + 5].min() > 0                  # stopped in contact
-        if case.endswith("coulomb"):                                # vertices stick (bowl), slip (block)
+        if case.endswith("coulomb"):                                # vertices stick (bowl), slip (blocks)
             sets = a[:, header.index("n_stick" if case == "bowl-coulomb" else "n_slip")]
             assert sets[:stop].max() > 0 and sets[stop:].max() > 0
         scale = np.maximum(np.abs(a).max(axis=0), 1e-300)
