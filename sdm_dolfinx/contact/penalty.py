@@ -147,14 +147,16 @@ class Penalty:
         """The reported nodal contact forces (the solver's ``lam``) at the state X."""
         return self.forces(X.array_r)
 
-    def energy(self, U):
+    def energy(self, U, time=0.0):
         """sum_i k_i / 2 (lb_i - U_i)_+^2 over every rank (collective); gap rows: their penetration,
-        against obstacles the true signed distance -phi(a_i + U_i) (fixed obstacles), for the weighted
-        gap g_i - G_i U."""
+        against obstacles the true signed distance -phi(a_i + U_i, t) at the state's ``time`` (a moving
+        obstacle: E + this - obstacle_work is conserved by the midpoint scheme in sustained contact on a
+        plane, the springs' force k s at X being their energy's exact difference quotient there), for the
+        weighted gap g_i - G_i U."""
         if self.rows is None:
             s = np.maximum(self.lb - U.array_r[self.cdofs], 0.0)
         elif self.rows is self.discretisation.obstacle_rows:
-            s = np.maximum(-self.rows.phi(U.array_r, 0.0), 0.0)
+            s = np.maximum(-self.rows.phi(U.array_r, 0.0 if time is None else time), 0.0)
         else:
             s = np.maximum(self.rows.g - self.solver.row_values(U.array_r), 0.0)
         return float(self.discretisation.comm.allreduce(float(0.5 * np.sum(self.k * s * s)), op=MPI.SUM))

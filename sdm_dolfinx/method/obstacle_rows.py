@@ -78,8 +78,8 @@ def refusal(integ: Any, scheme: Any, vi_solver: str, linear: str) -> Optional[st
     takes = ("exact", "penalty") if d.obstacle_rows is None else ("exact", "penalty", "nitsche")
     if integ.contact not in takes:
         return f"{what}, which contact {integ.contact!r} does not take yet: use contact {' or '.join(map(repr, takes))}"
-    if integ.contact != "exact" and d.obstacle_rows is not None and d.obstacle_rows.moves:
-        return f"{what} that move, which contact {integ.contact!r} does not take yet: use contact 'exact'"
+    if integ.contact == "nitsche" and d.obstacle_rows is not None and d.obstacle_rows.moves:
+        return f"{what} that move, which contact {integ.contact!r} does not take yet: use contact 'exact' or 'penalty'"
     snes = vi_solver in ("vinewtonrsls", "vinewtonssls") and d.obstacle_rows is not None
     if snes and (integ.contact != "exact" or integ.friction is not None or linear not in ("auto", "lu")):
         return (f"{what}: vi_solver {vi_solver!r} takes the exact frictionless contact with linear 'auto' or 'lu' "

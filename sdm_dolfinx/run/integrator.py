@@ -345,10 +345,15 @@ class Integrator:
         whatever the contact treatment."""
         return self.solver.lam
 
-    def contact_energy(self, U):
-        """The energy stored in the contact treatment at the state U (collective; 0.0 for the
-        exact contact)."""
-        return 0.0 if self.treatment is None else float(self.treatment.energy(U))
+    def contact_energy(self, U, time=None):
+        """The energy stored in the contact treatment at the state U at ``time`` (a moving obstacle's
+        position; collective; 0.0 for the exact contact)."""
+        if self.treatment is None:
+            return 0.0
+        rows = self.discretisation.obstacle_rows
+        if time is not None and rows is not None and rows.moves:
+            return float(self.treatment.energy(U, time))
+        return float(self.treatment.energy(U))
 
     def energies(self, U, V, time=None):
         """(kinetic, potential) of the discrete energy J^h (Theorem 2); a time-dependent load

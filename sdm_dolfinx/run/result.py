@@ -113,8 +113,8 @@ class Formulation(Protocol):
     def energies(self, U: PETSc.Vec, V: PETSc.Vec, time: Optional[float] = None) -> tuple[float, float]:
         """(kinetic, potential) of the state, the load taken at ``time``."""
 
-    def contact_energy(self, U: PETSc.Vec) -> float:
-        """The energy stored in the contact treatment at U (0.0 for the exact contact)."""
+    def contact_energy(self, U: PETSc.Vec, time: Optional[float] = None) -> float:
+        """The energy stored in the contact treatment at U at ``time`` (0.0 for the exact contact)."""
 
     def momentum(self, V: PETSc.Vec, component: int) -> float:
         """The discrete momentum along ``component``."""
@@ -167,7 +167,7 @@ class TimeSeries:
         (friction)."""
         f, comm = self.formulation, self.comm
         kin, pot = f.energies(U, V, t)
-        stored = f.contact_energy(U) if CONTACT_ENERGY in self.columns else 0.0
+        stored = f.contact_energy(U, t) if CONTACT_ENERGY in self.columns else 0.0
         row = {"step": n, "t": t, "energy": kin + pot + stored, "kinetic": kin, "potential": pot,
                "u_probe": self.probe(U), "lambda_probe": self.cprobe(lam), "n_active": n_active,
                "newton_its": its}
