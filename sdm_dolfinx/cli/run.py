@@ -211,7 +211,8 @@ def set_petsc_options(pairs):
 #: PETSc options of the step solvers checked before anything runs: the solvers' own (VI_OPTIONS)
 #: and SNES's iteration limit (-sdm_snes_max_it -5 made the semi-smooth Newton do no iteration)
 CHECKED_OPTIONS = {**VI_OPTIONS, "snes_max_it": (int, lambda v: v >= 1, "an integer >= 1"),
-                   "schur_max_active": (int, lambda v: v >= 1, "an integer >= 1")}
+                   "schur_max_active": (int, lambda v: v >= 1, "an integer >= 1"),
+                   "gap_max_columns": (int, lambda v: v >= 0, "an integer >= 0")}
 
 
 #: the parser whose options an unrecognised argument is compared with (set by :func:`parse`)

@@ -19,9 +19,15 @@ x = x0 + K^-1 G_A^T mu, with mu from the |A| x |A| SPD system
     (G_A K^-1 G_A^T) mu = g_A - G_A x0,
 
 and mu is the multiplier. The active set is updated as in the primal-dual active set method
-(Murty's rule against cycles). There is no Krylov fallback: more than ``max_columns`` cached
-columns is refused in one line (an active zone of about max_columns / gdim nodes against an
-obstacle, fewer with weighted rows).
+(Murty's rule against cycles).
+
+**Krylov fallback.** When an active set needs more than ``max_columns`` cached columns (an active
+zone of about max_columns / gdim nodes against an obstacle, fewer with weighted rows: a 3-D contact
+zone at a fine level), the system is solved by conjugate gradients on the Schur complement instead,
+each product S v = G_A K^-1 G_A^T v one solve with the factorisation (S is SPD for SPD K and rows of
+full rank: the M formulation; the (U, V) block variant's K is not, and is refused there), then
+x = x0 + K^-1 G_A^T mu by one more solve. The columns already cached stay for the smaller active sets.
+CG stops at a residual of :data:`KRYLOV_RTOL` times the right-hand side's.
 """
 from __future__ import annotations
 
@@ -41,6 +47,9 @@ from sdm_dolfinx.solvers.schur import SCHUR_COLUMN_MEMORY, SCHUR_MAX_COLUMNS
 
 Array = npt.NDArray[np.float64]
 
+#: conjugate gradients on the Schur complement (the Krylov fallback) stop at this relative residual
+KRYLOV_RTOL = 1e-12
+
 
 class _Rows:
     """What the Newton loop needs of its rows (a subclass: where they read x): the cache of columns
@@ -55,8 +64,13 @@ class _Rows:
         self._ncols = 0
         self._Zf: Optional[np.ndarray] = np.zeros((K.getLocalSize()[0], 0), order="F")
         self._rhs = K.createVecLeft()
+        self._z = K.createVecRight()
         #: the rows' compliances 1/k (a penalty: lam = k (g - G x)_+), or None: the exact contact
         self.compliance: Optional[Array] = None
+        #: K is SPD (the Krylov fallback's CG needs it); the last system was solved by it; its CG iterations
+        self.spd = True
+        self.krylov = False
+        self.krylov_its = 0
 
     # the subclasses'
     def values(self, x: Array) -> Array:
@@ -87,8 +101,9 @@ class _Rows:
             return
         need = self._ncols + len(missing)
         if need > self.max_columns:
-            raise VIError(f"the active contact zone needs {need} columns of K^-1 (at most {self.max_columns}): "
-                          f"the gap rows' dense Schur complement has no Krylov fallback yet")
+            raise VIError(f"the active contact zone needs {need} columns of K^-1 (at most {self.max_columns}) and "
+                          f"the (U, V) block system's Schur complement is not SPD: no Krylov fallback (use mass "
+                          f"'lumped')")
         cols = self.fac.solve_columns(missing)
         self.its += len(missing)
         if self._Zf is not None and need > self._Zf.shape[1]:
@@ -126,6 +141,9 @@ class _Rows:
             return self._gx0.copy(), np.zeros(m)
         nz = cA != 0.0
         used = np.unique(gA[nz])
+        self.krylov = self.spd and self._ncols + sum(j not in self._slot for j in used.tolist()) > self.max_columns
+        if self.krylov:
+            return self._krylov_system(rows)
         self._ensure_columns(used.tolist())
         slots = np.array([self._slot[j] for j in used.tolist()], dtype=np.int64)
         P = np.zeros((len(used), nA))                   # G_A^T in the basis of the used columns
@@ -144,8 +162,54 @@ class _Rows:
         self._slots, self._pmu, self._rows, self._mu_local = slots, pmu, rows, mu[off:off + len(rows)]
         return self._gx0 + GZ @ pmu, lam
 
+    def _krylov_system(self, rows: npt.NDArray[np.int64]) -> tuple[Array, Array]:
+        """:meth:`system` by CG on the Schur complement (the module's Krylov fallback); keeps
+        K^-1 G_A^T mu for :meth:`finish`."""
+        comm, m = self.comm, len(self.g)
+
+        def spread(mu: Array) -> Array:             # K^-1 G_A^T mu (owned entries): one solve
+            self._rhs.set(0.0)
+            self._add_transpose(rows, mu, self._rhs.array)
+            self.fac.solve(self._rhs, self._z)
+            self.its += 1
+            return self._z.array_r.copy()
+
+        def apply(mu: Array) -> Array:
+            out = self.values(spread(mu))[rows]
+            return out + self.compliance[rows] * mu if self.compliance is not None else out
+
+        def dot(a: Array, c: Array) -> float:
+            return float(comm.allreduce(float(a @ c), op=MPI.SUM))
+
+        r = self.g[rows] - self._gx0[rows]
+        mu, p = np.zeros(len(rows)), r.copy()
+        rr = dot(r, r)
+        stop = KRYLOV_RTOL ** 2 * rr
+        for _ in range(10 * comm.allreduce(len(rows), op=MPI.SUM) + 10):
+            if rr <= stop:
+                break
+            q = apply(p)
+            alpha = rr / dot(p, q)
+            mu += alpha * p
+            r -= alpha * q
+            rr_new = dot(r, r)
+            p = r + (rr_new / rr) * p
+            rr = rr_new
+            self.krylov_its += 1
+        else:
+            raise VIError(f"CG on the gap rows' Schur complement ({comm.allreduce(len(rows), op=MPI.SUM)} active rows) "
+                          f"did not converge")
+        self._kx = spread(mu)
+        lam = np.zeros(m)
+        lam[rows] = mu
+        self._rows, self._mu_local = rows, mu
+        return self._gx0 + self.values(self._kx), lam
+
     def finish(self, b: PETSc.Vec, x: PETSc.Vec) -> None:
         """The full x of the accepted active set (the last :meth:`system`)."""
+        if self.krylov:
+            x.array[:] = self._x0.array_r + self._kx
+            return
         if self._Zf is not None:
             out = self._x0.array_r.copy()
             for slot, v in zip(self._slots, self._pmu):
@@ -159,6 +223,7 @@ class _Rows:
 
     def destroy(self) -> None:
         self._rhs.destroy()
+        self._z.destroy()
 
 
 class NodeRows(_Rows):
@@ -288,7 +353,8 @@ class GapNewton:
         factor_matrix: a sparser matrix whose factorisation solves with K, or None.
         rtol: tolerance of the complementarity tests, relative to max|b|.
         max_it: Newton iterations before giving up.
-        max_columns: the most columns K^-1 e_j cached (the largest active zone it solves).
+        max_columns: the most columns K^-1 e_j cached (the largest active zone solved on them; beyond,
+            the Krylov fallback); the option ``-<prefix>gap_max_columns`` overrides it.
         stiffness: a penalty instead of the exact contact: the rows' spring stiffnesses k (m,), the
             force lam = k (g - G x)_+ (:mod:`sdm_dolfinx.contact.penalty`); each Newton system is
             then (G_A K^-1 G_A^T + diag(1/k_A)) mu = g_A - G_A x0, as for the unit rows'
@@ -309,9 +375,14 @@ class GapNewton:
         self.spd, self.linear = symmetric_positive, "schur"
         with scoped_options(self.prefix, self.options, inherit=True) as scope:
             self.rtol, self.max_it, self.monitor = vi_tolerances(scope, rtol, max_it)
+            # -<prefix>gap_max_columns N: the most columns of K^-1 cached (beyond: the Krylov fallback)
+            max_columns = PETSc.Options().getInt(scope.prefix + "gap_max_columns", max_columns)
+            if max_columns < 0:
+                raise VIError(f"{scope.origin('gap_max_columns')}: {max_columns} is not an integer >= 0")
             self.fac = Factorisation(K, symmetric_positive, self.prefix + "factor_", aug=factor_matrix)
         self.rows: Union[NodeRows, MatrixRows] = (NodeRows(K, self.fac, dofs, max_columns) if G is None
                                                   else MatrixRows(K, self.fac, G, max_columns))
+        self.rows.spd = bool(symmetric_positive)
         m = len(self.rows.g)
         if stiffness is not None:
             k = np.broadcast_to(np.asarray(stiffness, dtype=float), (m,))
