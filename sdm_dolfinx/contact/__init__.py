@@ -52,6 +52,8 @@ class Treatment(Protocol):
     solver: Any
 
     def energy(self, U: PETSc.Vec) -> float: ...
+    # (a treatment that takes moving obstacles, the penalty, has energy(U, time): the obstacle at the
+    # state's time; the Integrator passes it then)
 
     def force(self, X: PETSc.Vec, out: PETSc.Vec) -> PETSc.Vec: ...
 

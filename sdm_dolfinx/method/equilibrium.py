@@ -33,8 +33,9 @@ rotation, the identity off the constrained nodes; friction: the tangential unkno
 The run's first step linearises its rows at U_s instead: they differ by O(|U_s,t|^2 / R) on an
 obstacle of curvature radius R (0 on a plane: there the run stays at U_s to round-off).
 
-**With the weighted gap** (``constrain="weighted"``, frictionless) a row reads several nodes: the active
-rows are held by multipliers instead of eliminated dofs (:mod:`.static_rows`, the same loop).
+**With the weighted gap** (``constrain="weighted"``) a row reads several nodes: the active rows (and with
+friction their sticking tangential rows) are held by multipliers instead of eliminated dofs
+(:mod:`.static_rows`, the same loop).
 
 A rigid motion that A does not resist (the translations and rotations for a vector u, the
 constant for a scalar u, where ``A r = 0``) and that neither the active contact, the sticking
@@ -54,8 +55,8 @@ import numpy as np
 from sdm_dolfinx.method import static_rows
 from sdm_dolfinx.method.static_frame import ObstacleFrame
 from sdm_dolfinx.method.static_parts import (MAX_ITER, RESIDUAL_TOL, RTOL, StaticStartError,  # noqa: F401 (public)
-                                             free_motions, kernel_basis, load_at_zero, no_rigid_displacement,
-                                             lu_solve, pin_dofs, stick_or_slip)
+                                             free_or_refuse, kernel_basis, load_at_zero, lu_solve,
+                                             no_rigid_displacement, stick_or_slip)
 from sdm_dolfinx.problems.base import EQUILIBRIUM as EQUILIBRIUM  # noqa: F401  (the value of u0 asking for it)
 from sdm_dolfinx.problems.base import label
 
@@ -155,7 +156,8 @@ def _static(d, friction, who, frame):  # long: the active-set loop of static_dis
             b.array[tdofs[slip].reshape(-1)] -= (bound[slip, None] * sdir[slip]).reshape(-1)
         fixed = np.zeros(nloc, dtype=bool)
         fixed[dofs] = True
-        N, pins = _free_or_refuse(d, R, names, fixed, b, law, active, who, load)
+        counted = f"{d.num_constraints} constrained, {comm.allreduce(int(active.sum()), op=MPI.SUM)} in contact"
+        N, pins = free_or_refuse(d, R, names, fixed, b, law, load, who, counted)
         # 3-D: Newton on the slip direction, -bound u_t / |u_t| ~ -bound s - bound / |u_t| (I - s s^T) u_t
         blocks = [(tdofs[i], bound[i] / ulen[i] * (np.eye(nt) - np.outer(sdir[i], sdir[i])))
                   for i in np.flatnonzero(slip & (ulen > 0))] if nt > 1 else []
@@ -194,26 +196,3 @@ def _static(d, friction, who, frame):  # long: the active-set loop of static_dis
     if frame is not None:
         frame.from_frame(U)
     return U
-
-
-def _free_or_refuse(d, R, names, fixed, b, law, active, who, load):
-    """(the free rigid motions N: owned rows x m, the dofs to pin to remove them) for the ``fixed`` dofs;
-    StaticStartError when the load ``b`` works along one of them (no static solution)."""
-    comm, nloc = d.comm, len(fixed)
-    coef = free_motions(R, fixed, comm) if R.shape[1] else np.zeros((0, 0))
-    if not coef.size:
-        return np.zeros((nloc, 0)), np.zeros(0, dtype=np.int64)
-    N = R @ coef
-    work = comm.allreduce(N.T @ b.array, op=MPI.SUM)
-    bad = np.flatnonzero(np.abs(work) > RTOL * load * np.sqrt(comm.allreduce(nloc, op=MPI.SUM)))
-    if bad.size:
-        j = bad[np.argmax(np.abs(work[bad]))]
-        name = names[int(np.argmax(np.abs(coef[:, j])))]
-        held = ("the active contact, friction and Dirichlet data do not fix" if law != "none"
-                else "neither the active contact (frictionless) nor Dirichlet data fix")
-        raise StaticStartError(
-            f"{who}: no static equilibrium: {held} {name}, and the load works along it (the body would "
-            f"{'lift off or slide' if law == 'none' else 'lift off or slip'}: {d.num_constraints} "
-            f"constrained, {comm.allreduce(int(active.sum()), op=MPI.SUM)} in contact); hold it "
-            f"({'friction, ' if law == 'none' else ''}Dirichlet data) or start from rest")
-    return N, pin_dofs(N, fixed, comm)

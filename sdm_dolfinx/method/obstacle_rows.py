@@ -75,6 +75,8 @@ def refusal(integ: Any, scheme: Any, vi_solver: str, linear: str) -> Optional[st
             else "constrain 'weighted' (the weighted gap's rows)")
     if scheme.bound_weight is None:
         return f"{what}, which scheme {scheme.name!r} does not take: use the midpoint or backward-euler scheme"
+    if integ.block and d.obstacle_rows is None:     # the rows are in W's numbering, K the (U, V) block system's
+        return f"{what}, which mass 'consistent' (the (U, V) block system) does not take yet: use mass 'lumped'"
     takes = ("exact", "penalty") if d.obstacle_rows is None else ("exact", "penalty", "nitsche")
     if integ.contact not in takes:
         return f"{what}, which contact {integ.contact!r} does not take yet: use contact {' or '.join(map(repr, takes))}"

@@ -85,13 +85,39 @@ def kernel_basis(d, nloc, frame=None):
     return (R if frame is None else frame.to_frame_rows(R)), [n for n, _ in modes]
 
 
-def free_motions(R, fixed, comm):
-    """The combinations of the columns of R (owned rows, unit columns) that vanish on the ``fixed`` rows:
-    (their coefficients, k x m)."""
+def free_motions(R, fixed, comm, extra=None):
+    """The combinations of the columns of R (owned rows, unit columns) that vanish on the ``fixed`` rows
+    and, with ``extra`` (this rank's Gram contribution (C R)^T (C R) of rows C that hold the body: the
+    weighted gap's), on those rows: (their coefficients, k x m)."""
     Rf = R[fixed]
-    G = comm.allreduce(Rf.T @ Rf, op=MPI.SUM)
+    G = comm.allreduce(Rf.T @ Rf + (0.0 if extra is None else extra), op=MPI.SUM)
     w, v = np.linalg.eigh(G)
     return v[:, w < FREE_TOL]
+
+
+def free_or_refuse(d, R, names, fixed, b, law, load, who, counted, kind="", extra=None):
+    """(the free rigid motions N: owned rows x m, the dofs to pin to remove them) for the ``fixed`` dofs
+    (and the rows of ``extra``: :func:`free_motions`); StaticStartError when the load ``b`` works along one
+    of them (no static solution). ``counted``: the constraints and those in contact, for the message;
+    ``kind``: the constraint's name in it (e.g. "weighted gap")."""
+    comm, nloc = d.comm, len(fixed)
+    coef = free_motions(R, fixed, comm, extra) if R.shape[1] else np.zeros((0, 0))
+    if not coef.size:
+        return np.zeros((nloc, 0)), np.zeros(0, dtype=np.int64)
+    N = R @ coef
+    work = comm.allreduce(N.T @ b.array, op=MPI.SUM)
+    bad = np.flatnonzero(np.abs(work) > RTOL * load * np.sqrt(comm.allreduce(nloc, op=MPI.SUM)))
+    if bad.size:
+        j = bad[np.argmax(np.abs(work[bad]))]
+        name = names[int(np.argmax(np.abs(coef[:, j])))]
+        held = (f"the active contact, friction{f' ({kind})' if kind else ''} and Dirichlet data do not fix"
+                if law != "none" else f"neither the active contact (frictionless{f', {kind}' if kind else ''}) nor "
+                                      f"Dirichlet data fix")
+        raise StaticStartError(
+            f"{who}: no static equilibrium: {held} {name}, and the load works along it (the body would "
+            f"{'lift off or slide' if law == 'none' else 'lift off or slip'}: {counted}); hold it "
+            f"({'friction, ' if law == 'none' else ''}Dirichlet data) or start from rest")
+    return N, pin_dofs(N, fixed, comm)
 
 
 def pin_dofs(N, fixed, comm):

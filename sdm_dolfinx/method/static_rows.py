@@ -9,7 +9,7 @@ A row reads several nodes, so no change of variables makes it the bound of one u
 obstacles' node rows are made in :mod:`.static_frame`): the active rows are held by their multipliers,
 the saddle-point system
 
-    [ A     -C^T ] [ U  ]   [ L - f ]
+    [ A     -C^T ] [ U  ]   [ L + f ]
     [ -C     0   ] [ mu ] = [ -c    ]
 
 (symmetric, indefinite) solved by MUMPS's LU with the Dirichlet dofs eliminated; C holds the active
@@ -21,7 +21,7 @@ penetrates (G_i U < g_i), until neither happens.
 component: :mod:`sdm_dolfinx.solvers.friction_rows`) are the tangential unknowns, as the tangential dofs
 are in :mod:`.equilibrium`: an active row sticks (H_i U = 0: C holds its tangential rows too, their
 multipliers the tangential reactions) while its reaction lies in the cone, else it slips with the force
-f = -bound H_i^T s on the cone's edge (3-D: with the Newton term bound / |u_t| (I - s s^T) on its
+f = -bound H_i^T s (on the right-hand side above) on the cone's edge (3-D: with the Newton term bound / |u_t| (I - s s^T) on its
 tangential rows, H_i^T B_i H_i added to A); the sets are updated by
 :func:`~.static_parts.stick_or_slip`, the same rule.
 
@@ -35,20 +35,17 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 import numpy as np
-import scipy.sparse as sp
 
 from sdm_dolfinx.method import static_parts as eq
+from sdm_dolfinx.solvers.friction_rows import component_rows
 
 
 def _shifted(G, component, k):
     """The rows of G (entries on ``component``'s dofs) with the same weights on component ``k``'s dofs
     (a new PETSc matrix of G's layout)."""
-    indptr, indices, data = G.getValuesCSR()
-    local = sp.csr_matrix((data, indices, indptr), shape=(G.getLocalSize()[0], G.getSize()[1]))
-    local.eliminate_zeros()         # the assembled pattern is blocked: the other components' entries are 0
-    H = PETSc.Mat().createAIJ(G.getSizes(), csr=(local.indptr.astype(PETSc.IntType),
-                                                  (local.indices - component + k).astype(PETSc.IntType),
-                                                  local.data), comm=G.getComm())
+    local = component_rows(G, component, k)
+    csr = (local.indptr.astype(PETSc.IntType), local.indices.astype(PETSc.IntType), local.data)
+    H = PETSc.Mat().createAIJ(G.getSizes(), csr=csr, comm=G.getComm())
     H.assemble()
     return H
 
@@ -88,8 +85,13 @@ def static_displacement(d, who, friction=None):
             slip = active & ~stick if nt else np.zeros(m, dtype=bool)
             b = L.copy()                            # the load, and the friction force -bound H^T s where it slips
             for k, h in enumerate(H):
-                h.multTransposeAdd(_vec(h, np.where(slip, -bound * sdir[:, k], 0.0)), b, b)
-            N, pins = _free_or_refuse(d, R, [GR] + HR, names, fixed, [active] + [held] * nt, b, law, who, load)
+                f = _vec(h, np.where(slip, -bound * sdir[:, k], 0.0))
+                h.multTransposeAdd(f, b, b)
+                f.destroy()
+            extra = sum(c[mask].T @ c[mask] for c, mask in zip([GR] + HR, [active] + [held] * nt))
+            counted = (f"{comm.allreduce(m, op=MPI.SUM)} rows, {comm.allreduce(int(active.sum()), op=MPI.SUM)} "
+                       f"in contact")
+            N, pins = eq.free_or_refuse(d, R, names, fixed, b, law, load, who, counted, "weighted gap", extra)
             blocks = [(i, bound[i] / ulen[i] * (np.eye(nt) - np.outer(sdir[i], sdir[i])))
                       for i in np.flatnonzero(slip & (ulen > 0))] if nt > 1 else []
             U, mu = _solve(d, [G] + H, [g] + [np.zeros(m)] * nt, [active] + [held] * nt, b, pins, blocks)
@@ -102,9 +104,7 @@ def static_displacement(d, who, friction=None):
             changes = int(release.sum() + add.sum())
             if nt:
                 ut = np.column_stack([_rows(h, U) for h in H])
-                lam_t = np.column_stack(mu[1:])
-                for i, B in blocks:                 # a slipping row's reaction: -bound s + B u_t (unused)
-                    lam_t[i] = -bound[i] * sdir[i] + B @ ut[i]
+                lam_t = np.column_stack(mu[1:])     # the sticking rows' (stick_or_slip reads no other)
                 changes += eq.stick_or_slip(friction, mu[0], lam_t, ut, measure, active & ~release, stick, sdir,
                                             bound, ulen, eq.RTOL * load)
             if not comm.allreduce(changes, op=MPI.SUM):
@@ -150,35 +150,6 @@ def _rows_times(G, R):
     return out
 
 
-def _free_or_refuse(d, R, CR, names, fixed, masks, b, law, who, load):
-    """(the free rigid motions N, owned rows x m; the dofs to pin) when the rows of C (each matrix's rows
-    R-products ``CR`` under its mask) and the ``fixed`` (Dirichlet) dofs hold the body; StaticStartError
-    when the load ``b`` works along a free motion."""
-    comm, nloc = d.comm, len(fixed)
-    if not R.shape[1]:
-        return np.zeros((nloc, 0)), np.zeros(0, dtype=np.int64)
-    Rf = R[fixed]
-    gram = Rf.T @ Rf + sum(c[mask].T @ c[mask] for c, mask in zip(CR, masks))
-    w, v = np.linalg.eigh(comm.allreduce(gram, op=MPI.SUM))
-    coef = v[:, w < eq.FREE_TOL]
-    if not coef.size:
-        return np.zeros((nloc, 0)), np.zeros(0, dtype=np.int64)
-    N = R @ coef
-    work = comm.allreduce(N.T @ b.array, op=MPI.SUM)
-    bad = np.flatnonzero(np.abs(work) > eq.RTOL * load * np.sqrt(comm.allreduce(nloc, op=MPI.SUM)))
-    if bad.size:
-        j = bad[np.argmax(np.abs(work[bad]))]
-        name = names[int(np.argmax(np.abs(coef[:, j])))]
-        held = ("the active contact, friction (weighted gap) and Dirichlet data do not fix" if law != "none"
-                else "neither the active contact (frictionless, weighted gap) nor Dirichlet data fix")
-        raise eq.StaticStartError(
-            f"{who}: no static equilibrium: {held} {name}, and the load works along it (the body would "
-            f"{'lift off or slide' if law == 'none' else 'lift off or slip'}: "
-            f"{comm.allreduce(len(masks[0]), op=MPI.SUM)} rows, {comm.allreduce(int(masks[0].sum()), op=MPI.SUM)} "
-            f"in contact); hold it ({'friction, ' if law == 'none' else ''}Dirichlet data) or start from rest")
-    return N, eq.pin_dofs(N, fixed, comm)
-
-
 def _solve(d, Cs, cs, masks, b, pins, blocks=()):
     """(U, [mu per matrix]): the saddle-point system of the module's docstring with C the rows of the
     matrices ``Cs`` under ``masks`` (values ``cs``), the Dirichlet dofs and the ``pins`` (U = 0)
@@ -215,6 +186,16 @@ def _solve(d, Cs, cs, masks, b, pins, blocks=()):
     x0.array[d.ddofs] = d.g.x.array[d.ddofs]
     K.zeroRowsColumns((k0 + fix).astype(PETSc.IntType), 1.0, x0, rhs)
     reason = eq.lu_solve(K, rhs, sol)
+    # the solve's residual, by block (forces, gaps) against its right-hand side's size: a nearly singular
+    # system (an active row reading Dirichlet dofs only, a free motion missed) is refused, not returned
+    res = K.createVecLeft()
+    K.mult(sol, res)
+    res.axpy(-1.0, rhs)
+    worst = [comm.allreduce(float(np.max(np.abs(v), initial=0.0)), op=MPI.MAX)
+             for v in (res.array_r[:nw], rhs.array_r[:nw], res.array_r[nw:], rhs.array_r[nw:])]
+    res.destroy()
+    singular = not (worst[0] <= eq.RESIDUAL_TOL * max(worst[1], np.finfo(float).tiny)
+                    and worst[2] <= eq.RESIDUAL_TOL * max(worst[3], 1.0))
     U = d.A.createVecRight()
     U.array[:] = sol.array_r[:nw]
     mus, pos = [], nw
@@ -227,9 +208,11 @@ def _solve(d, Cs, cs, masks, b, pins, blocks=()):
         obj.destroy()
     if A is not d.A:
         A.destroy()
-    if reason <= 0 or not np.all(np.isfinite(U.array_r)) or pos != nw + na:
+    finite = comm.allreduce(bool(np.all(np.isfinite(U.array_r))), op=MPI.LAND)
+    if reason <= 0 or not finite or singular or pos != nw + na:
         raise eq.StaticStartError(f"{d.problem.name!r}: u0 = 'equilibrium': the static problem with the weighted "
-                                  f"gap is singular (KSP reason {reason}): start from a u0 of your own")
+                                  f"gap is singular (KSP reason {reason}, residual {worst[0]:.2e} of the load "
+                                  f"{worst[1]:.2e}): start from a u0 of your own")
     return U, mus
 
 

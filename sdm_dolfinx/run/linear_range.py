@@ -66,6 +66,8 @@ class LinearRange:
         self.q = fem.Function(self.Q)
         self.expr = fem.Expression(expr, compat.interpolation_points(self.Q))
         self.num_cells = msh.topology.index_map(msh.topology.dim).size_local
+        #: the DG0 block of each owned cell (not assumed to be the cell's own index)
+        self.block_of_cell = np.asarray(compat.dofmap_list(self.Q)[:self.num_cells, 0], dtype=np.int64)
         #: the largest (rotation, strain) so far, and for each (step, t, cell midpoint) once beyond tolerance
         self.largest = np.zeros(2)
         self.where: list[Optional[tuple[int, float, npt.NDArray[np.float64]]]] = [None, None]
@@ -73,8 +75,9 @@ class LinearRange:
 
     @staticmethod
     def applies(shape: tuple[int, ...], gdim: int) -> bool:
-        """A vector displacement (value ``shape``) in 2-D or 3-D: a scalar field has no rotation, 1-D none."""
-        return len(shape) == 1 and gdim >= 2
+        """A displacement of the mesh's dimension (value ``shape`` (gdim,)) in 2-D or 3-D: a scalar field has
+        no rotation, 1-D none, and another vector (3 components on a 2-D mesh) no square gradient."""
+        return tuple(shape) == (gdim,) and gdim >= 2
 
     def watch(self, n: int, t: float, U: PETSc.Vec) -> None:
         """Measure the state U (owned dofs) of step ``n`` at time ``t`` (collective)."""
@@ -82,7 +85,7 @@ class LinearRange:
         self.u.x.array[:owned.size] = owned
         self.u.x.scatter_forward()
         self.q.interpolate(self.expr)
-        mine = self.q.x.array.reshape(-1, 2)[:self.num_cells]
+        mine = self.q.x.array.reshape(-1, 2)[self.block_of_cell]          # row k: owned cell k
         local = mine.max(axis=0, initial=0.0)
         now = np.empty(2)
         self.comm.Allreduce(np.ascontiguousarray(local), now, op=MPI.MAX)

@@ -29,20 +29,23 @@ import scipy.sparse as sp
 from sdm_dolfinx.solvers.friction_system import ColumnCache, FrictionSystem
 
 
+def component_rows(G, component, k):
+    """This rank's rows of G (entries on ``component``'s dofs; the assembled pattern's explicit zeros on
+    the other components dropped) with the same weights on component ``k``'s dofs: a scipy CSR matrix
+    (local rows, W's global dof ids as columns)."""
+    indptr, indices, data = G.getValuesCSR()
+    local = sp.csr_matrix((data, indices, indptr), shape=(G.getLocalSize()[0], G.getSize()[1]))
+    local.eliminate_zeros()
+    local.indices = (local.indices - component + k).astype(local.indices.dtype)
+    return local
+
+
 def rows_matrix(G, component, components, comm):
     """(R: every rank's rows (normal ``component``, then each of ``components``, per rank in rank order),
     a scipy CSR matrix with W's global dof ids as columns, on every rank; this rank's first row in it).
     ``G``: the PETSc matrix of the normal rows (this rank's rows, W's column layout, entries on the
     dofs of ``component`` only)."""
-    indptr, indices, data = G.getValuesCSR()
-    local = sp.csr_matrix((data, indices, indptr), shape=(G.getLocalSize()[0], G.getSize()[1]))
-    local.eliminate_zeros()         # the assembled pattern is blocked: the other components' entries are 0
-    blocks = []
-    for k in (component, *components):
-        shifted = local.copy()
-        shifted.indices = (shifted.indices - component + k).astype(shifted.indices.dtype)
-        blocks.append(shifted)
-    mine = sp.vstack(blocks, format="csr")
+    mine = sp.vstack([component_rows(G, component, k) for k in (component, *components)], format="csr")
     parts = comm.allgather(mine)
     offset = sum(p.shape[0] for p in parts[:comm.rank])
     return sp.vstack(parts, format="csr"), offset

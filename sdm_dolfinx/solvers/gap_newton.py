@@ -6,8 +6,8 @@ Each step of the midpoint or backward Euler scheme with gap rows is the variatio
 
 row i of G a linear functional of the displacement: against a rigid obstacle it reads the k = gdim
 dofs of one node, G_i x = n_i . x_node (n_i the obstacle's unit normal there, so that G_i^T lam_i is
-the force lam_i n_i on that node: :class:`NodeRows`, its coefficients given anew before every step);
-a weighted (mortar) gap reads every dof of the contact facets around a vertex (:class:`MatrixRows`,
+the force lam_i n_i on that node: :class:`~.gap_rows.NodeRows`, its coefficients given anew before every step);
+a weighted (mortar) gap reads every dof of the contact facets around a vertex (:class:`~.gap_rows.MatrixRows`,
 a distributed PETSc matrix fixed for the run). The axis-aligned bound x_c >= lb of
 :class:`~.semismooth.SemismoothNewton` is the node row n_i = e_c.
 
@@ -25,9 +25,9 @@ and mu is the multiplier. The active set is updated as in the primal-dual active
 zone of about max_columns / gdim nodes against an obstacle, fewer with weighted rows: a 3-D contact
 zone at a fine level), the system is solved by conjugate gradients on the Schur complement instead,
 each product S v = G_A K^-1 G_A^T v one solve with the factorisation (S is SPD for SPD K and rows of
-full rank: the M formulation; the (U, V) block variant's K is not, and is refused there), then
+full rank: the M formulation; not built for the (U, V) block variant, refused there), then
 x = x0 + K^-1 G_A^T mu by one more solve. The columns already cached stay for the smaller active sets.
-CG stops at a residual of :data:`KRYLOV_RTOL` times the right-hand side's.
+CG stops at a residual of :data:`~.gap_krylov.KRYLOV_RTOL` times the right-hand side's.
 """
 from __future__ import annotations
 
@@ -42,299 +42,11 @@ import numpy.typing as npt
 
 from sdm_dolfinx.solvers.base import MurtyRule, VIError
 from sdm_dolfinx.solvers.factorisation import Factorisation
+from sdm_dolfinx.solvers.gap_rows import MatrixRows, NodeRows
 from sdm_dolfinx.solvers.options import instance_prefix, scoped_options, vi_tolerances
-from sdm_dolfinx.solvers.schur import SCHUR_COLUMN_MEMORY, SCHUR_MAX_COLUMNS
+from sdm_dolfinx.solvers.schur import SCHUR_MAX_COLUMNS
 
 Array = npt.NDArray[np.float64]
-
-#: conjugate gradients on the Schur complement (the Krylov fallback) stop at this relative residual
-KRYLOV_RTOL = 1e-12
-
-
-class _Rows:
-    """What the Newton loop needs of its rows (a subclass: where they read x): the cache of columns
-    K^-1 e_j, G x, and the dense systems."""
-
-    def __init__(self, K: PETSc.Mat, fac: Factorisation, m: int, max_columns: int) -> None:
-        self.K, self.fac, self.comm = K, fac, K.getComm().tompi4py()
-        self.g = np.zeros(m)
-        self.max_columns = int(max_columns)
-        self.its = 0
-        self._slot: dict[int, int] = {}
-        self._ncols = 0
-        self._Zf: Optional[np.ndarray] = np.zeros((K.getLocalSize()[0], 0), order="F")
-        self._rhs = K.createVecLeft()
-        self._z = K.createVecRight()
-        #: the rows' compliances 1/k (a penalty: lam = k (g - G x)_+), or None: the exact contact
-        self.compliance: Optional[Array] = None
-        #: K is SPD (the Krylov fallback's CG needs it); the last system was solved by it; its CG iterations
-        self.spd = True
-        self.krylov = False
-        self.krylov_its = 0
-
-    # the subclasses'
-    def values(self, x: Array) -> Array:
-        """G x at this rank's rows for the owned array x (collective)."""
-        raise NotImplementedError
-
-    def _entries(self, rows: npt.NDArray[np.int64]) -> tuple[np.ndarray, np.ndarray]:
-        """(global column ids, values), each (len(rows), k), of the given local rows (zero-padded)."""
-        raise NotImplementedError
-
-    def _store(self, cols: np.ndarray, start: int) -> None:
-        """Keep what the subclass needs of the new columns ``cols`` (n_local x k), slots start.."""
-        raise NotImplementedError
-
-    def _gz(self, slots: npt.NDArray[np.int64]) -> Array:
-        """G K^-1 e_j at this rank's rows for the cached columns in ``slots`` (m x len(slots))."""
-        raise NotImplementedError
-
-    def _add_transpose(self, rows: npt.NDArray[np.int64], mu: Array, out: Array) -> None:
-        """out += G_rows^T mu (owned entries; collective)."""
-        raise NotImplementedError
-
-    # shared
-    def _ensure_columns(self, gids: list[int]) -> None:
-        """Compute and cache K^-1 e_j for the ids not cached yet (collective, same list)."""
-        missing = [j for j in gids if j not in self._slot]
-        if not missing:
-            return
-        need = self._ncols + len(missing)
-        if need > self.max_columns:
-            raise VIError(f"the active contact zone needs {need} columns of K^-1 (at most {self.max_columns}) and "
-                          f"the (U, V) block system's Schur complement is not SPD: no Krylov fallback (use mass "
-                          f"'lumped')")
-        cols = self.fac.solve_columns(missing)
-        self.its += len(missing)
-        if self._Zf is not None and need > self._Zf.shape[1]:
-            cap = min(max(need, 2 * self._Zf.shape[1], 16), self.max_columns)
-            fits = self.comm.allreduce(self._Zf.shape[0] * cap * 8 <= SCHUR_COLUMN_MEMORY, op=MPI.LAND)
-            if fits:
-                Zf = np.zeros((self._Zf.shape[0], cap), order="F")
-                Zf[:, :self._ncols] = self._Zf[:, :self._ncols]
-                self._Zf = Zf
-            else:
-                self._Zf = None
-        if self._Zf is not None:
-            self._Zf[:, self._ncols:need] = cols
-        self._store(cols, self._ncols)
-        for j, gid in enumerate(missing):
-            self._slot[gid] = self._ncols + j
-        self._ncols = need
-
-    def start(self, x0: PETSc.Vec) -> None:
-        self._x0 = x0
-        self._gx0 = self.values(x0.array_r)
-
-    def system(self, active: npt.NDArray[np.bool_]) -> tuple[Array, Array]:
-        """(G x, lam) of the Newton system on ``active`` (collective), kept for :meth:`finish`."""
-        comm, m = self.comm, len(self.g)
-        rows = np.flatnonzero(active)
-        ids_loc, vals_loc = self._entries(rows)
-        ids, vals = comm.allgather(ids_loc), comm.allgather(vals_loc)
-        k = max(a.shape[1] for a in ids) if ids else 1
-        gA = np.concatenate([np.pad(a, ((0, 0), (0, k - a.shape[1])), constant_values=-1) for a in ids])
-        cA = np.concatenate([np.pad(a, ((0, 0), (0, k - a.shape[1]))) for a in vals])
-        nA = len(gA)
-        if nA == 0:
-            self._slots, self._pmu, self._rows, self._mu_local = np.zeros(0, np.int64), np.zeros(0), rows, np.zeros(0)
-            return self._gx0.copy(), np.zeros(m)
-        nz = cA != 0.0
-        used = np.unique(gA[nz])
-        self.krylov = self.spd and self._ncols + sum(j not in self._slot for j in used.tolist()) > self.max_columns
-        if self.krylov:
-            return self._krylov_system(rows)
-        self._ensure_columns(used.tolist())
-        slots = np.array([self._slot[j] for j in used.tolist()], dtype=np.int64)
-        P = np.zeros((len(used), nA))                   # G_A^T in the basis of the used columns
-        a_idx = np.nonzero(nz)
-        np.add.at(P, (np.searchsorted(used, gA[a_idx]), a_idx[0]), cA[a_idx])
-        GZ = self._gz(slots)
-        S = np.vstack(comm.allgather(GZ[rows] @ P))
-        if self.compliance is not None:         # a penalty: G_A x = g_A - mu / k_A
-            S[np.diag_indices_from(S)] += np.concatenate(comm.allgather(self.compliance[rows]))
-        r = np.concatenate(comm.allgather(self.g[rows] - self._gx0[rows]))
-        mu = np.linalg.solve(S, r)
-        pmu = P @ mu
-        off = sum(len(p) for p in ids[:comm.rank])
-        lam = np.zeros(m)
-        lam[rows] = mu[off:off + len(rows)]
-        self._slots, self._pmu, self._rows, self._mu_local = slots, pmu, rows, mu[off:off + len(rows)]
-        return self._gx0 + GZ @ pmu, lam
-
-    def _krylov_system(self, rows: npt.NDArray[np.int64]) -> tuple[Array, Array]:
-        """:meth:`system` by CG on the Schur complement (the module's Krylov fallback); keeps
-        K^-1 G_A^T mu for :meth:`finish`."""
-        comm, m = self.comm, len(self.g)
-
-        def spread(mu: Array) -> Array:             # K^-1 G_A^T mu (owned entries): one solve
-            self._rhs.set(0.0)
-            self._add_transpose(rows, mu, self._rhs.array)
-            self.fac.solve(self._rhs, self._z)
-            self.its += 1
-            return self._z.array_r.copy()
-
-        def apply(mu: Array) -> Array:
-            out = self.values(spread(mu))[rows]
-            return out + self.compliance[rows] * mu if self.compliance is not None else out
-
-        def dot(a: Array, c: Array) -> float:
-            return float(comm.allreduce(float(a @ c), op=MPI.SUM))
-
-        r = self.g[rows] - self._gx0[rows]
-        mu, p = np.zeros(len(rows)), r.copy()
-        rr = dot(r, r)
-        stop = KRYLOV_RTOL ** 2 * rr
-        for _ in range(10 * comm.allreduce(len(rows), op=MPI.SUM) + 10):
-            if rr <= stop:
-                break
-            q = apply(p)
-            alpha = rr / dot(p, q)
-            mu += alpha * p
-            r -= alpha * q
-            rr_new = dot(r, r)
-            p = r + (rr_new / rr) * p
-            rr = rr_new
-            self.krylov_its += 1
-        else:
-            raise VIError(f"CG on the gap rows' Schur complement ({comm.allreduce(len(rows), op=MPI.SUM)} active rows) "
-                          f"did not converge")
-        self._kx = spread(mu)
-        lam = np.zeros(m)
-        lam[rows] = mu
-        self._rows, self._mu_local = rows, mu
-        return self._gx0 + self.values(self._kx), lam
-
-    def finish(self, b: PETSc.Vec, x: PETSc.Vec) -> None:
-        """The full x of the accepted active set (the last :meth:`system`)."""
-        if self.krylov:
-            x.array[:] = self._x0.array_r + self._kx
-            return
-        if self._Zf is not None:
-            out = self._x0.array_r.copy()
-            for slot, v in zip(self._slots, self._pmu):
-                out += v * self._Zf[:, slot]
-            x.array[:] = out
-        else:               # one more solve: K x = b + G_A^T mu
-            b.copy(self._rhs)
-            self._add_transpose(self._rows, self._mu_local, self._rhs.array)
-            self.fac.solve(self._rhs, x)
-            self.its += 1
-
-    def destroy(self) -> None:
-        self._rhs.destroy()
-        self._z.destroy()
-
-
-class NodeRows(_Rows):
-    """Rows that read the owned dofs of one node each: G_i x = coef[i] . x[dofs[i]] (coefficients
-    given before every solve: :meth:`set`). The columns are cached at the rows' dofs (Zt), so a
-    normal that turns needs no product with the full columns."""
-
-    def __init__(self, K, fac, dofs, max_columns):
-        self.dofs = np.asarray(dofs, dtype=np.int32).reshape(len(dofs), -1) if len(dofs) else \
-            np.zeros((0, 1), dtype=np.int32)
-        m, k = self.dofs.shape
-        super().__init__(K, fac, m, max_columns)
-        self.coef = np.zeros((m, k))
-        self.gd = (K.getOwnershipRange()[0] + self.dofs).astype(np.int64)
-        self._Zt = np.zeros((m * k, 0))
-
-    def set(self, coef, g):
-        self.coef[:] = np.asarray(coef, dtype=float).reshape(self.coef.shape)
-        self.g[:] = np.asarray(g, dtype=float).reshape(self.g.shape)
-
-    def values(self, x):
-        return np.einsum("ik,ik->i", self.coef, x[self.dofs]) if len(self.g) else np.zeros(0)
-
-    def _entries(self, rows):
-        return self.gd[rows], self.coef[rows]
-
-    def _store(self, cols, start):
-        need = start + cols.shape[1]
-        if need > self._Zt.shape[1]:
-            Zt = np.zeros((self._Zt.shape[0], max(need, 2 * self._Zt.shape[1], 16)))
-            Zt[:, :start] = self._Zt[:, :start]
-            self._Zt = Zt
-        self._Zt[:, start:need] = cols[self.dofs.reshape(-1), :]
-
-    def _gz(self, slots):
-        m, k = self.dofs.shape
-        return np.einsum("ik,iks->is", self.coef, self._Zt[:, slots].reshape(m, k, len(slots)))
-
-    def _add_transpose(self, rows, mu, out):
-        np.add.at(out, self.dofs[rows].reshape(-1), (self.coef[rows] * mu[:, None]).reshape(-1))
-
-    def finish(self, b, x):
-        super().finish(b, x)
-        rows = self._rows
-        if len(rows):       # one row per node (the rows share no dof): move along the row to g exactly
-            c, xr = self.coef[rows], x.array[self.dofs[rows]]
-            target = self.g[rows] if self.compliance is None else self.g[rows] - self.compliance[rows] * self._mu_local
-            step = (target - np.einsum("ik,ik->i", c, xr)) / np.einsum("ik,ik->i", c, c)
-            x.array[self.dofs[rows]] = xr + step[:, None] * c
-
-
-class MatrixRows(_Rows):
-    """Rows of a distributed PETSc matrix G fixed for the run (this rank's rows its local rows, K's
-    column layout), with g given by :meth:`set`: a row may read dofs of other ranks. G K^-1 e_j is
-    computed once per cached column (a sparse-dense product)."""
-
-    def __init__(self, K, fac, G, max_columns):
-        m = G.getLocalSize()[0]
-        super().__init__(K, fac, m, max_columns)
-        self.G = G
-        ai, aj, av = G.getValuesCSR()
-        self._ai, self._aj, self._av = np.asarray(ai), np.asarray(aj, dtype=np.int64), np.asarray(av)
-        self._GZ = np.zeros((m, 0))
-        self._xv, self._gv = G.createVecRight(), G.createVecLeft()
-
-    def set(self, g):
-        self.g[:] = np.asarray(g, dtype=float).reshape(self.g.shape)
-
-    def values(self, x):
-        self._xv.array[:] = x
-        self.G.mult(self._xv, self._gv)
-        return self._gv.array_r.copy()
-
-    def _entries(self, rows):
-        counts = self._ai[rows + 1] - self._ai[rows] if len(rows) else np.zeros(0, dtype=np.int64)
-        k = int(counts.max(initial=1))
-        ids, vals = np.full((len(rows), k), -1, dtype=np.int64), np.zeros((len(rows), k))
-        for r, (i, n) in enumerate(zip(rows, counts)):
-            ids[r, :n] = self._aj[self._ai[i]:self._ai[i] + n]
-            vals[r, :n] = self._av[self._ai[i]:self._ai[i] + n]
-        return ids, vals
-
-    def _store(self, cols, start):
-        nl, k = cols.shape
-        D = PETSc.Mat().createDense([(nl, self.K.getSize()[0]), (None, k)], comm=self.K.getComm())
-        D.setUp()
-        D.getDenseArray()[:] = cols
-        D.assemble()
-        GZ = self.G.matMult(D)
-        new = GZ.getDenseArray().copy()
-        GZ.destroy(), D.destroy()
-        need = start + k
-        if need > self._GZ.shape[1]:
-            grown = np.zeros((self._GZ.shape[0], max(need, 2 * self._GZ.shape[1], 16)))
-            grown[:, :start] = self._GZ[:, :start]
-            self._GZ = grown
-        self._GZ[:, start:need] = new
-
-    def _gz(self, slots):
-        return self._GZ[:, slots]
-
-    def _add_transpose(self, rows, mu, out):
-        full = np.zeros(len(self.g))
-        full[rows] = mu
-        self._gv.array[:] = full
-        self.G.multTranspose(self._gv, self._xv)
-        out += self._xv.array_r
-
-    def destroy(self):
-        super().destroy()
-        self._xv.destroy(), self._gv.destroy()
 
 
 class GapNewton:
@@ -378,7 +90,8 @@ class GapNewton:
             # -<prefix>gap_max_columns N: the most columns of K^-1 cached (beyond: the Krylov fallback)
             max_columns = PETSc.Options().getInt(scope.prefix + "gap_max_columns", max_columns)
             if max_columns < 0:
-                raise VIError(f"{scope.origin('gap_max_columns')}: {max_columns} is not an integer >= 0")
+                raise VIError(f"-{self.prefix}gap_max_columns (or -sdm_gap_max_columns): {max_columns} is not an "
+                              f"integer >= 0")
             self.fac = Factorisation(K, symmetric_positive, self.prefix + "factor_", aug=factor_matrix)
         self.rows: Union[NodeRows, MatrixRows] = (NodeRows(K, self.fac, dofs, max_columns) if G is None
                                                   else MatrixRows(K, self.fac, G, max_columns))

@@ -68,6 +68,13 @@ def test_a_rigid_rotation_and_a_pure_strain_are_measured_exactly(gdim, element):
     assert abs(strain.largest[0]) < 1e-12 and abs(strain.largest[1] - np.linalg.norm(E)) < 1e-12
 
 
+def test_only_a_displacement_of_the_mesh_s_dimension_is_watched():
+    """A scalar field, 1-D, and a vector of another size (3 components on a 2-D mesh: its gradient is not
+    square, UFL's skew part refuses it) have no rotation to watch."""
+    assert LinearRange.applies((2,), 2) and LinearRange.applies((3,), 3)
+    assert not any(LinearRange.applies(s, g) for s, g in (((), 2), ((1,), 1), ((3,), 2), ((2,), 3)))
+
+
 def test_the_largest_is_kept_with_its_step_and_only_beyond_tolerance_warns():
     V = _space(2, "P2")
     watch = LinearRange(V)
