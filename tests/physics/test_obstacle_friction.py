@@ -194,15 +194,16 @@ def test_the_belt_seen_from_the_belt_is_the_block_sliding_on_a_fixed_floor():
     motion), so momentum_x differs by m V and the contact force, the friction force, the sets and the
     dissipated energy (friction's work on the relative slip) are the same, up to the frictional Newton's
     tolerance 1e-10 max|b|: |b| ~ alpha^2 M U grows with the belt run's translation U_x <= 5 mm to ~1e4
-    N, so 1e-6 N against m g = 2 N (asserted 1e-5 relative for forces, 1e-7 for momentum and dissipation;
-    measured 1.1e-6, 1.7e-8, 2.5e-9)."""
+    N, so 1e-6 N per node against m g = 2 N, and over 500 steps of 1e-4 s on 9 nodes an impulse of up to
+    4.5e-9 against m V = 0.02 (asserted 1e-5 relative for forces, 1e-6 for momentum and dissipation;
+    measured 1.1e-6, 1.7e-8, 2.5e-9 on 1 rank; 1.5e-7 for momentum on 2 ranks with dolfinx 0.9)."""
     V = 100.0
     belt, fixed = _belt(V, 0.0, "P1+/P0"), _belt(0.0, -V, "P1+/P0")
     m = RHO * W * H
-    assert np.max(np.abs(belt["momentum_x"] - (fixed["momentum_x"] + m * V))) <= 1e-7 * m * V
+    assert np.max(np.abs(belt["momentum_x"] - (fixed["momentum_x"] + m * V))) <= 1e-6 * m * V
     for c in ("contact_force", "tangential_force"):
         assert np.max(np.abs(belt[c] - fixed[c])) <= 1e-5 * np.max(np.abs(fixed[c])), c
-    assert np.max(np.abs(belt["dissipated"] - fixed["dissipated"])) <= 1e-7 * np.max(fixed["dissipated"])
+    assert np.max(np.abs(belt["dissipated"] - fixed["dissipated"])) <= 1e-6 * np.max(fixed["dissipated"])
     assert np.array_equal(belt["n_slip"], fixed["n_slip"]) and np.array_equal(belt["n_active"], fixed["n_active"])
 
 
