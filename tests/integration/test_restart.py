@@ -179,7 +179,9 @@ def test_sigkill_then_restart_reproduces_the_run(tmp_path):
     cut = tmp_path / "cut"
     step = _run_until_killed(cmd, cut, 120)
     rows = (cut / "timeseries.csv").read_text().splitlines()
-    assert all(len(r.split(",")) == len(rows[0].split(",")) for r in rows) and int(rows[-1].split(",")[0]) > step >= 50
+    # the CSV reaches the checkpoint's step at least (the kill may fall right after the checkpoint, before
+    # the next row: a race in which rows[-1] == step, seen once in CI on the 2-core machine)
+    assert all(len(r.split(",")) == len(rows[0].split(",")) for r in rows) and int(rows[-1].split(",")[0]) >= step >= 50
     import h5py
     with h5py.File(cut / "solution.h5", "r") as h5:
         assert len(h5["Function/displacement"]) >= step // 20
