@@ -157,16 +157,21 @@ def contact_dofs(discretisation, friction):
     return tdofs, thresholds
 
 
+def _carried(integ):
+    """The moving obstacles' own tangential displacement over the step at the contact nodes, in their
+    frames (``ObstacleRows.carried``), or None when no obstacle moves."""
+    rows = integ.discretisation.obstacle_rows
+    return integ.solver.frame_tangential(rows.carried) if rows is not None and rows.moves else None
+
+
 def slip_reference(integ, u):
     """The step's reference of the slip, ``xref_t`` of the frictional solver: the tangential components
     of U^n = ``u``; against a moving obstacle plus its own tangential displacement at the scheme's
     constraint time (the part ``bound_weight`` of the step's, as its rows take the obstacle: the midpoint's
     half), so that the slip is measured against the obstacle's surface, not the fixed frame."""
     ref = integ.solver.tangential(u)
-    rows = integ.discretisation.obstacle_rows
-    if rows is not None and rows.moves:
-        ref = ref + integ.time_scheme.bound_weight * integ.solver.frame_tangential(rows.carried)
-    return ref
+    carried = _carried(integ)
+    return ref if carried is None else ref + integ.time_scheme.bound_weight * carried
 
 
 def step_info(integ, info, u, un):
@@ -179,10 +184,9 @@ def step_info(integ, info, u, un):
     run's Integrator."""
     comm = integ.discretisation.comm
     integ.slip_t = integ.solver.tangential(u) - integ.solver.tangential(un)
-    rows = integ.discretisation.obstacle_rows
     lam_t = integ.solver.lam_t
-    if rows is not None and rows.moves:
-        carried = integ.solver.frame_tangential(rows.carried)
+    carried = _carried(integ)
+    if carried is not None:
         integ.slip_t = integ.slip_t - carried
         info["obstacle_friction_work"] = comm.allreduce(float(np.sum(lam_t * carried)), op=MPI.SUM)
     if lam_t.ndim == 1:

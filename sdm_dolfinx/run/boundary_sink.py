@@ -39,13 +39,10 @@ BOUNDARY_SINK_RTOL = 1e-2
 BOUNDARY_GAP_FLOOR = 1e-9
 
 
-
 class BoundaryGapWarning(UserWarning):
     """The constrained boundary sinks below the bound between constrained vertices (P2 mid-edge
     nodes): one line on rank 0, once per run; silence it with ``warnings.simplefilter("ignore",
     BoundaryGapWarning)``."""
-
-
 
 
 class BoundarySink:

@@ -59,6 +59,21 @@ def _check(K, b, x, Gx, g, lam, GTlam):
     assert 0 < n_active < n_rows
 
 
+def _matrix_rows(K):
+    """(G, g): rows reading three dofs each, one of another rank at the partition; some rows far from binding."""
+    r0, r1 = K.getOwnershipRange()
+    m_loc = (r1 - r0) // 2
+    rows0 = COMM.exscan(m_loc) or 0
+    M = COMM.allreduce(m_loc, op=MPI.SUM)
+    G = PETSc.Mat().createAIJ([(m_loc, M), (r1 - r0, N)], nnz=3, comm=COMM)
+    for k in range(m_loc):                   # row i averages dofs 2i, 2i + 1, 2i + 2 (the last of another rank)
+        i = rows0 + k
+        for j, w in ((2 * i, 0.25), (2 * i + 1, 0.5), ((2 * i + 2) % N, 0.25)):
+            G.setValue(i, j, w)
+    G.assemble()
+    return G, np.where(np.arange(m_loc) % 3 == 0, -3.0, 0.15)
+
+
 def test_node_rows_with_turning_normals_satisfy_the_kkt_conditions():
     K = _K()
     r0, r1 = K.getOwnershipRange()
@@ -82,18 +97,8 @@ def test_node_rows_with_turning_normals_satisfy_the_kkt_conditions():
 
 def test_matrix_rows_reading_other_ranks_dofs_satisfy_the_kkt_conditions():
     K = _K()
-    r0, r1 = K.getOwnershipRange()
-    m_loc = (r1 - r0) // 2
-    rows0 = COMM.exscan(m_loc) or 0
-    M = COMM.allreduce(m_loc, op=MPI.SUM)
-    G = PETSc.Mat().createAIJ([(m_loc, M), (r1 - r0, N)], nnz=3, comm=COMM)
-    for k in range(m_loc):                   # row i averages dofs 2i, 2i + 1, 2i + 2 (the last of another rank)
-        i = rows0 + k
-        for j, w in ((2 * i, 0.25), (2 * i + 1, 0.5), ((2 * i + 2) % N, 0.25)):
-            G.setValue(i, j, w)
-    G.assemble()
+    G, g = _matrix_rows(K)
     solver = GapNewton(K, G=G)
-    g = np.where(np.arange(m_loc) % 3 == 0, -3.0, 0.15)
     solver.set_rows(None, g)
     b = _b(K, 3)
     x = K.createVecRight()
@@ -109,20 +114,6 @@ def test_matrix_rows_reading_other_ranks_dofs_satisfy_the_kkt_conditions():
 def test_node_rows_or_a_matrix_one_of_them():
     with pytest.raises(ValueError, match="one of them"):
         GapNewton(_K())
-
-
-def _matrix_rows(K):
-    r0, r1 = K.getOwnershipRange()
-    m_loc = (r1 - r0) // 2
-    rows0 = COMM.exscan(m_loc) or 0
-    M = COMM.allreduce(m_loc, op=MPI.SUM)
-    G = PETSc.Mat().createAIJ([(m_loc, M), (r1 - r0, N)], nnz=3, comm=COMM)
-    for k in range(m_loc):
-        i = rows0 + k
-        for j, w in ((2 * i, 0.25), (2 * i + 1, 0.5), ((2 * i + 2) % N, 0.25)):
-            G.setValue(i, j, w)
-    G.assemble()
-    return G, np.where(np.arange(m_loc) % 3 == 0, -3.0, 0.15)
 
 
 @pytest.mark.parametrize("kind", ["node", "matrix", "penalty"])
