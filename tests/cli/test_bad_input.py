@@ -61,6 +61,7 @@ BAD = [
     (["membrane", "-sdm_vi_max_it", "many"], None, "-sdm_vi_max_it"),
     (["membrane", "-sdm_schur_max_active", "0"], None, "-sdm_schur_max_active"),
     (["ball", "-sdm_schur_max_active", "-3"], None, "-sdm_schur_max_active"),
+    (["membrane", "-sdm_gap_max_columns", "-1"], None, "-sdm_gap_max_columns"),
     (["disc", "--radius", "0"], None, "--radius"),
     (["disc", "--rho", "nan"], None, "--rho"),
     (["disc", "--level", "7"], None, "invalid choice"),
