@@ -24,7 +24,7 @@ def misdirected_bound(problem, cx, comm):
     (also for a scalar u). Collective."""
     shape = tuple(problem.shape)
     c = problem.constraint_component
-    if not shape or c is None or getattr(problem, "obstacles", ()):
+    if not shape or c is None or problem.lower_bound is None:      # obstacles, contact pairs: no bound
         return None
     gdim = shape[0]
     x = problem.mesh.geometry.x

@@ -11,6 +11,7 @@ from dolfinx import fem, mesh as dmesh
 
 from sdm_dolfinx import compat
 from sdm_dolfinx.method.dofs import vertex_to_dof
+from sdm_dolfinx.problems.contact_pairs import constrained_vertices
 
 
 #: the meshtags value of the contact facets
@@ -42,7 +43,7 @@ def contact_facets(d):
     msh = d.problem.mesh
     fv = _facet_vertices(msh)
     nv = msh.topology.index_map(0).size_local + msh.topology.index_map(0).num_ghosts
-    marked = _vertex_flag(d, np.asarray(d.problem.constraint_vertices(msh), dtype=np.int32))
+    marked = _vertex_flag(d, constrained_vertices(d.problem, msh))
     all_marked = np.all(marked[vertex_to_dof(d.Q1, np.arange(nv))[fv]] > 0, axis=1)
     exterior = np.asarray(dmesh.exterior_facet_indices(msh.topology), dtype=np.int32)
     return np.sort(exterior[all_marked[exterior]]).astype(np.int32)

@@ -17,6 +17,7 @@ from sdm_dolfinx.method.dofs import vertex_to_dof as vertex_to_dof
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.method.frozen import FrozenData
 from sdm_dolfinx.method import dirichlet as _parts, equilibrium, masses, problem_data, quadrature
+from sdm_dolfinx.method.body_rows import BodyRows
 from sdm_dolfinx.method.obstacle_rows import ObstacleRows
 from sdm_dolfinx.method.weighted_rows import WeightedRows
 from sdm_dolfinx.method.pairs import MASS_TREATMENTS, get_pair
@@ -65,6 +66,9 @@ class Discretisation:
             raise ValueError(bad[0])
         if constrain not in CONSTRAIN:
             raise ValueError(f"constrain must be one of {', '.join(CONSTRAIN)} (got {constrain!r})")
+        if problem.contact_pairs and constrain != "vertices":
+            raise DiscretisationError(f"problem {problem.name!r} has contact pairs, which constrain {constrain!r} does "
+                                      f"not take yet: use constrain 'vertices'")
         self.constrain = constrain
         self.problem = problem
         self.pair = get_pair(pair) if isinstance(pair, str) else pair
@@ -92,6 +96,8 @@ class Discretisation:
             self._nodes()
         #: the gap rows against the Problem's rigid obstacles (:mod:`.obstacle_rows`), or None
         self.obstacle_rows = ObstacleRows(self) if problem.obstacles else None
+        #: the gap rows between the bodies of the Problem's contact pairs (:mod:`.body_rows`), or None
+        self.body_rows = BodyRows(self) if problem.contact_pairs else None
         #: the weighted gap's rows (constrain="weighted": :mod:`.weighted_rows`), or None
         self.weighted_rows = WeightedRows(self) if constrain == "weighted" and self.num_constraints else None
         if self.mass in masses.MODIFIED:
@@ -334,8 +340,9 @@ class Discretisation:
     def _check_initial(self, U):
         """DiscretisationError when U0 is below the bound at constrained vertices (beyond INITIAL_TOL)."""
         comm = self.comm
-        if self.obstacle_rows is not None:
-            gap, scale = self.obstacle_rows.phi(U.array_r, 0.0), self.obstacle_rows.size
+        rows = self.obstacle_rows if self.obstacle_rows is not None else self.body_rows
+        if rows is not None:
+            gap, scale = rows.phi(U.array_r, 0.0), rows.size
         elif self.weighted_rows is not None:            # the rows G U >= g, one per constrained vertex
             Gu = self.weighted_rows.G.createVecLeft()
             self.weighted_rows.G.mult(U, Gu)
@@ -353,7 +360,8 @@ class Discretisation:
         worst, owner = comm.allreduce((float(gap[k]) if k >= 0 else np.inf, comm.rank), op=MPI.MINLOC)
         x = comm.bcast(self.cx[:, k] if comm.rank == owner else None, root=owner)
         where = ", ".join(f"{c:.6g}" for c in x[:self.problem.mesh.geometry.dim])
-        where_to = "inside an obstacle" if self.obstacle_rows is not None else "below the bound"
+        where_to = ("inside an obstacle" if self.obstacle_rows is not None else "inside a master body"
+                    if self.body_rows is not None else "below the bound")
         raise DiscretisationError(
             f"problem {self.problem.name!r}: the initial displacement is {where_to} at {count} constrained "
             f"{'nodes' if self.constrain == 'nodes' else 'vertices'}, by up to {-worst:.3g} at ({where}) (tolerance "

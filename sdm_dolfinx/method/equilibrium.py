@@ -52,6 +52,7 @@ from petsc4py import PETSc
 
 import numpy as np
 
+from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.method import static_rows
 from sdm_dolfinx.method.static_frame import ObstacleFrame
 from sdm_dolfinx.method.static_parts import (MAX_ITER, RESIDUAL_TOL, RTOL, StaticStartError,  # noqa: F401 (public)
@@ -72,6 +73,9 @@ def initial_displacement(d, u0, friction=None, contact="exact"):
     if not isinstance(start, str):          # a built-in start's own solution, or the run's (EQUILIBRIUM)
         u0.interpolate(start)
         return
+    if getattr(d, "body_rows", None) is not None:
+        raise DiscretisationError(f"problem {p.name!r}: the equilibrium start is not built for contact pairs yet: "
+                                  f"give u0 as x -> values")
     Us = static_displacement(d, friction, contact)
     u0.x.array[:len(Us.array_r)] = Us.array_r          # the owned entries: the same layout
     u0.x.scatter_forward()

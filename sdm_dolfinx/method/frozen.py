@@ -44,7 +44,8 @@ class FrozenData:
         if problem.time is None:
             items += _form_data(l_form, "l(w)", "L is assembled once unless the Problem declares its time "
                                                 "dependence: Problem(time=t), t a fem.Constant used by l(w)")
-        if cx is not None and not getattr(problem, "moving_bound", False) and not getattr(problem, "obstacles", ()):     # a moving bound is evaluated every step
+        if cx is not None and problem.lower_bound is not None and not getattr(problem, "moving_bound", False):
+            # a moving bound is evaluated every step; obstacles and contact pairs have none
             items.append(("the bound lower_bound(x) at the constrained vertices",
                           lambda: np.asarray(problem.lower_bound(cx), dtype=float).copy(),
                           "a bound that moves must say so: Problem(moving_bound=True), lower_bound(x, t)", False))

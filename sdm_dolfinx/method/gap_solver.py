@@ -11,6 +11,10 @@ def gap_solver(d, K, vi_solver="ssn", symmetric_positive=True, options=None, fac
     """(the solver, its linear strategy, why) for the gap rows of the Discretisation ``d`` and the step
     matrix ``K``; the weighted rows' g is set (obstacle rows: before every step, by the caller)."""
     rows = d.obstacle_rows
+    if getattr(d, "body_rows", None) is not None:          # contact between bodies (method/body_rows.py)
+        solver = GapNewton(K, symmetric_positive=symmetric_positive, options=options, factor_matrix=factor_matrix,
+                           surface=(d.body_rows.read, len(d.body_rows.dofs)))
+        return solver, "schur", "contact pairs: surface gap rows (dense Schur complement)"
     if vi_solver != "ssn":
         rows.require_free(f"vi_solver {vi_solver}")
         solver = FramedSnesVI(K, rows.dofs, d.problem.constraint_component or 0, snes_type=vi_solver,

@@ -19,11 +19,17 @@ if TYPE_CHECKING:
     from sdm_dolfinx.method.discretisation import Discretisation
 
 
+def _rows(d):
+    """The Discretisation's gap rows that measure true distances (obstacles, bodies), or None."""
+    return d.obstacle_rows if d.obstacle_rows is not None else getattr(d, "body_rows", None)
+
+
 def vertex_gap(discretisation: Discretisation, u: npt.NDArray[np.float64], t: float = 0.0) -> float:
     """min over the constrained vertices of u_c - bound, reduced over the ranks (+inf without any)."""
     d = discretisation
-    if d.obstacle_rows is not None:
-        return d.obstacle_rows.gap(u, t)
+    rows = _rows(d)
+    if rows is not None:
+        return rows.gap(u, t)
     return d.comm.allreduce(float(np.min(u[d.cdofs] - d.lb, initial=np.inf)), op=MPI.MIN)
 
 
@@ -31,8 +37,9 @@ def boundary_gap(discretisation: Discretisation, u: npt.NDArray[np.float64], t: 
     """min over every dof of W^h on the constrained boundary (P2 mid-edge nodes included) of
     u_c - bound, reduced over the ranks (+inf without such dofs)."""
     d = discretisation
-    if d.obstacle_rows is not None:
-        return d.obstacle_rows.gap(u, t, boundary=True)
+    rows = _rows(d)
+    if rows is not None:
+        return rows.gap(u, t, boundary=True)
     return d.comm.allreduce(float(np.min(u[d.bdofs] - d.blb, initial=np.inf)), op=MPI.MIN)
 
 
@@ -40,8 +47,9 @@ def boundary_gap_where(discretisation: Discretisation, u: npt.NDArray[np.float64
                        t: float = 0.0) -> npt.NDArray[np.float64]:
     """The coordinates (gdim,) of the dof where :func:`boundary_gap` is reached (collective)."""
     d = discretisation
-    if d.obstacle_rows is not None:
-        return d.obstacle_rows.where(u, t)
+    rows = _rows(d)
+    if rows is not None:
+        return rows.where(u, t)
     gap = u[d.bdofs] - d.blb
     k = int(np.argmin(gap)) if gap.size else -1
     _, owner = d.comm.allreduce((float(gap[k]) if k >= 0 else np.inf, d.comm.rank), op=MPI.MINLOC)
@@ -56,7 +64,7 @@ def displacement_spread(discretisation: Discretisation, u: npt.NDArray[np.float6
     obstacles, whose normals turn, the largest such spread over the components."""
     d = discretisation
     bs = d.W.dofmap.index_map_bs
-    comps = range(bs) if d.obstacle_rows is not None else [d.problem.constraint_component or 0]
+    comps = range(bs) if _rows(d) is not None else [d.problem.constraint_component or 0]
     ext = np.array([v for c in comps for v in (np.max(u[c::bs], initial=-np.inf), -np.min(u[c::bs], initial=np.inf))])
     d.comm.Allreduce(MPI.IN_PLACE, ext, op=MPI.MAX)
     spreads = ext[0::2] + ext[1::2]

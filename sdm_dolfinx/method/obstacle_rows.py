@@ -40,6 +40,7 @@ from mpi4py import MPI
 import numpy as np
 import numpy.typing as npt
 
+from sdm_dolfinx.method.body_rows import refusal as body_refusal
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.problems.base import label
 
@@ -69,6 +70,8 @@ def refusal(integ: Any, scheme: Any, vi_solver: str, linear: str) -> Optional[st
     """The one-line refusal of what the gap rows (obstacles, the weighted gap) do not take yet, or None
     (also without them). ``integ``: the Integrator being built (its discretisation, contact, friction)."""
     d = integ.discretisation
+    if getattr(d, "body_rows", None) is not None:
+        return body_refusal(integ, scheme, vi_solver, linear)
     if d.obstacle_rows is None and getattr(d, "weighted_rows", None) is None:
         return None
     what = (f"problem {d.problem.name!r} has obstacles" if d.obstacle_rows is not None

@@ -9,6 +9,7 @@ import numpy as np
 
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.problems.base import bound_at, label, one_line
+from sdm_dolfinx.problems.contact_pairs import constrained_vertices
 
 
 def refuse(problem, comm, wrong):
@@ -22,7 +23,7 @@ def refuse(problem, comm, wrong):
 def vertices(problem, comm):
     """``problem.constraint_vertices(mesh)``: local vertex indices (0 .. owned + ghost vertices - 1)."""
     msh = problem.mesh
-    verts = np.asarray(problem.constraint_vertices(msh))
+    verts = np.asarray(constrained_vertices(problem, msh))
     nall = msh.topology.index_map(0).size_local + msh.topology.index_map(0).num_ghosts
     wrong = None
     if verts.size and not np.issubdtype(verts.dtype, np.integer):
@@ -38,7 +39,7 @@ def bound(problem, x, comm, t=0.0):
     """``problem.lower_bound(x)`` (a moving bound: ``lower_bound(x, t)``) at the points ``x`` (3, n):
     n finite numbers. A Problem with ``obstacles`` has no such bound: NaN (every gap of it is
     :mod:`.obstacle_rows`'s, and a NaN can never pass for a gap)."""
-    if getattr(problem, "obstacles", ()):
+    if getattr(problem, "obstacles", ()) or getattr(problem, "contact_pairs", ()):
         return np.full(x.shape[1], np.nan, dtype=PETSc.ScalarType)
     moving, wrong = getattr(problem, "moving_bound", False), None
     try:

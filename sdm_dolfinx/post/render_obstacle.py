@@ -41,6 +41,7 @@ from sdm_dolfinx.io import PostprocessError
 from sdm_dolfinx.method.discretisation import vertex_coordinates
 from sdm_dolfinx.post.rebuild_run import rebuild_problem
 from sdm_dolfinx.problems.base import bound_at, one_line
+from sdm_dolfinx.problems.contact_pairs import constrained_vertices
 
 #: the Problems built again, by run.json's contents (one picture asks several times and boxes)
 _REBUILT: dict = {}
@@ -121,7 +122,7 @@ def _evaluate(problem, vertices_of_run, time=None):
     nverts = msh.topology.index_map(0).size_local
     if vertices_of_run is not None and nverts != vertices_of_run:
         return {"unknown": f"its problem, built again, has {nverts} vertices, the run had {vertices_of_run}"}
-    verts = np.asarray(problem.constraint_vertices(msh), dtype=np.int32)
+    verts = constrained_vertices(problem, msh)
     if verts.size == 0:
         return {"none": f"problem {problem.name!r} constrains no vertex"}
     moving = getattr(problem, "moving_bound", False)

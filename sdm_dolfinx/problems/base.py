@@ -31,6 +31,8 @@ from sdm_dolfinx.params import Param as Param
 from sdm_dolfinx.problems.dirichlet import DirichletPart as DirichletPart
 from sdm_dolfinx.problems.dirichlet import MeshEntities as MeshEntities
 from sdm_dolfinx.problems.dirichlet import validate_parts
+from sdm_dolfinx.problems import constraint_checks as _checks
+from sdm_dolfinx.problems.contact_pairs import ContactPair as ContactPair
 from sdm_dolfinx.problems.errors import ProblemInputError as ProblemInputError
 from sdm_dolfinx.problems.mesh_checks import degenerate_cells
 
@@ -69,7 +71,8 @@ class Problem:
             discretisation under L(0) with the constraint (its kind), Dirichlet data and the run's
             friction sticking (:mod:`sdm_dolfinx.method.equilibrium`).
         v0: initial velocity, same form.
-        constraint_vertices: ``mesh -> local vertex indices`` where K^h acts (eq. (13)).
+        constraint_vertices: ``mesh -> local vertex indices`` where K^h acts (eq. (13)); None with
+            ``contact_pairs``.
         lower_bound: ``x (3, n) -> (n,)`` the bound on the constrained displacement
             component at vertices of coordinates x: u_c(a_i) >= lower_bound(a_i); with
             ``moving_bound`` it is ``(x, t) -> (n,)``, the bound at the time t.
@@ -88,6 +91,10 @@ class Problem:
             obstacle, phi(a_i + u(a_i), t) >= 0, the rows linearised at the current configuration
             (:mod:`sdm_dolfinx.method.obstacle_rows`). A vector u only. Taken by the midpoint and
             backward Euler schemes with the exact contact, frictionless (the rest refuse it in one line).
+        contact_pairs: contact between the bodies of the mesh (:class:`ContactPair`: the slave
+            facets' vertices stay outside the master facets' body; :mod:`.contact_pairs`), instead
+            of ``constraint_vertices``, ``lower_bound`` and ``obstacles``. Frictionless, midpoint
+            and backward Euler schemes, the exact contact (the rest refuse it in one line).
         constraint_component: component of u that is bounded, and that ``u_probe`` records:
             required for a vector u (an int in 0..gdim-1; the Problem refuses None), None (or 0)
             for a scalar u.
@@ -137,7 +144,7 @@ class Problem:
     l: Callable[[UFL], UFL]
     u0: Union[PointFunction, str]
     v0: PointFunction
-    constraint_vertices: MeshEntities
+    constraint_vertices: Optional[MeshEntities]
     lower_bound: Optional[PointFunction]
     constraint_measure: Callable[[UFL], UFL]
     rho: float = 1.0
@@ -157,6 +164,7 @@ class Problem:
     dirichlet_parts: Sequence[DirichletPart] = ()
     moving_bound: bool = False
     obstacles: Sequence[Any] = ()
+    contact_pairs: Sequence[ContactPair] = ()
 
     def __post_init__(self) -> None:
         self.validate()
@@ -198,7 +206,8 @@ class Problem:
             raise ProblemInputError(f"problem {self.name!r}: time must be a scalar fem.Constant used by l(w) "
                                     f"(got {type(self.time).__name__})")
         validate_parts(self.name, self.dirichlet_parts, shape)
-        self._validate_obstacles(shape)
+        _checks.validate_obstacles(self)
+        _checks.validate_pairs(self)
         if not isinstance(self.moving_bound, (bool, np.bool_)):
             raise ProblemInputError(f"problem {self.name!r}: moving_bound must be True (lower_bound takes (x, t)) or "
                                     f"False (lower_bound takes x) (got {self.moving_bound!r})")
@@ -210,28 +219,6 @@ class Problem:
         degenerate = degenerate_cells(self.mesh) if hasattr(self.mesh, "geometry") else None
         if degenerate:
             raise ProblemInputError(f"problem {self.name!r}: {degenerate}")
-
-    def _validate_obstacles(self, shape: tuple[int, ...]) -> None:
-        """Obstacles: objects with ``distance(x, t)``, on a vector problem, instead of ``lower_bound``."""
-        obstacles = self.obstacles
-        if isinstance(obstacles, (str, bytes)) or not isinstance(obstacles, (list, tuple)):
-            raise ProblemInputError(f"problem {self.name!r}: obstacles must be a list of obstacles "
-                                    f"(sdm_dolfinx.obstacles), got {type(obstacles).__name__}")
-        if not obstacles:
-            if self.lower_bound is None:
-                raise ProblemInputError(f"problem {self.name!r}: lower_bound is None and there are no obstacles: "
-                                        f"declare lower_bound (u_c >= bound) or obstacles")
-            return
-        bad = [type(o).__name__ for o in obstacles if not callable(getattr(o, "distance", None))]
-        if bad:
-            raise ProblemInputError(f"problem {self.name!r}: obstacles must have distance(x, t) (see "
-                                    f"sdm_dolfinx.obstacles), not {bad[0]}")
-        if not shape:
-            raise ProblemInputError(f"problem {self.name!r}: obstacles constrain a displacement vector; a scalar u "
-                                    f"is bounded by lower_bound")
-        if self.lower_bound is not None or self.moving_bound:
-            raise ProblemInputError(f"problem {self.name!r}: declare either lower_bound (one component bounded) or "
-                                    f"obstacles, not both (set lower_bound=None and moving_bound=False)")
 
     def describe(self) -> dict[str, Any]:
         """Parameters with their units, as written to ``run.json`` (``args`` and ``source``
@@ -251,6 +238,8 @@ class Problem:
             d["dirichlet_parts"] = [part.describe(tuple(self.shape)) for part in self.dirichlet_parts]
         if self.moving_bound:
             d["bound"] = "moving: lower_bound(x, t) (each step imposes the scheme's step bound)"
+        if self.contact_pairs:
+            d["contact_pairs"] = [pair.describe() for pair in self.contact_pairs]
         if self.obstacles:
             d["obstacles"] = [o.describe() if hasattr(o, "describe") else {"kind": type(o).__name__}
                               for o in self.obstacles]

@@ -105,6 +105,8 @@ class BoundarySink:
         if getattr(self.discretisation, "weighted_rows", None) is not None:
             return ("the weighted gap holds the face on average between its vertices: constrain='nodes' "
                     "(--constrain nodes) holds every node of it")
+        if getattr(self.discretisation, "body_rows", None) is not None:
+            return "the contact pairs hold the slave vertices only (constrain 'nodes' is not built for them yet)"
         if getattr(self.discretisation, "obstacle_rows", None) is not None:
             return ("the obstacles hold the constrained vertices only: constrain='nodes' (--constrain nodes) holds "
                     "every node of the face")

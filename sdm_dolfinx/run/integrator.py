@@ -134,7 +134,7 @@ class Integrator:
         # a factorisation of K = c_M B^T D^-1 B + A is cheaper through the sparser
         # augmented matrix [A, sqrt(c_M) B^T; sqrt(c_M) B, -D] when M is much denser than A (P2/P1)
         factorised = (self.friction is not None or d.obstacle_rows is not None or d.weighted_rows is not None
-                      or (vi_solver == "ssn" and linear in ("schur", "cg-factor")))
+                      or d.body_rows is not None or (vi_solver == "ssn" and linear in ("schur", "cg-factor")))
         self.factor_matrix = None
         if (factorised and not self.block and self.coefficients is not None and self.coefficients[1] == 1.0
                 and d.B is not None and d.c_lumped is not None):
@@ -142,7 +142,8 @@ class Integrator:
             scale = a if a is not None and a * a == c_M else np.sqrt(c_M)
             self.factor_matrix = sparse_factor_matrix(self.K, d.A, d.B, d.c_lumped, scale, d.ddofs)
         self.slip = None
-        gap_rows = (d.obstacle_rows is not None or d.weighted_rows is not None) and self.friction is None
+        gap_rows = (d.obstacle_rows is not None or d.weighted_rows is not None
+                    or d.body_rows is not None) and self.friction is None
         if gap_rows and self.contact == "exact":            # G x >= g (method/gap_solver.py)
             self.solver, self.linear_strategy, self.linear_reason = gap_solver(
                 d, self.K, vi_solver, not self.block, options, self.factor_matrix)
@@ -252,7 +253,7 @@ class Integrator:
         if self.parts:
             self.parts.lift(self, U, t)
         self.moving.before_step(n, t)       # a moving obstacle: the step's bound into d.lb (else nothing)
-        rows, t1 = d.obstacle_rows, ((n + 1) * self.dt if t == n * self.dt else t + self.dt)
+        rows, t1 = d.obstacle_rows or d.body_rows, ((n + 1) * self.dt if t == n * self.dt else t + self.dt)
         if rows is not None and hasattr(self.treatment, "before_step"):    # Nitsche: its fields at U^n
             self.treatment.before_step(U, t, t1, ts.bound_weight)
         elif rows is not None:              # gap rows linearised at U^n (method/obstacle_rows.py)

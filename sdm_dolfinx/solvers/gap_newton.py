@@ -42,7 +42,7 @@ import numpy.typing as npt
 
 from sdm_dolfinx.solvers.base import MurtyRule, VIError
 from sdm_dolfinx.solvers.factorisation import Factorisation
-from sdm_dolfinx.solvers.gap_rows import MatrixRows, NodeRows
+from sdm_dolfinx.solvers.gap_rows import MatrixRows, NodeRows, SurfaceRows
 from sdm_dolfinx.solvers.options import instance_prefix, scoped_options, vi_tolerances
 from sdm_dolfinx.solvers.schur import SCHUR_MAX_COLUMNS
 
@@ -57,7 +57,9 @@ class GapNewton:
         dofs: node rows: (m, k) owned local indices of x that each of this rank's m rows reads
             (coefficients and g given before each solve by :meth:`set_rows`); or None with ``G``.
         G: matrix rows: a PETSc matrix (this rank's rows, K's columns) fixed for the run (g by
-            :meth:`set_rows` ``(None, g)``); or None with ``dofs``.
+            :meth:`set_rows` ``(None, g)``); or None.
+        surface: surface rows (``(read, m)``: the global dofs any row may read, this rank's number of
+            rows; ids, coefficients and g by :meth:`set_rows` ``((ids, coef), g)``); or None.
         symmetric_positive: K is SPD (M formulation); else the (U, V) block matrix.
         prefix: PETSc options prefix (None: a new ``sdm_<k>_``); ``vi_rtol``, ``vi_max_it``,
             ``vi_monitor`` as for the semi-smooth Newton (:func:`vi_tolerances`).
@@ -79,9 +81,9 @@ class GapNewton:
                  prefix: Optional[str] = None, options: Optional[Mapping[str, Any]] = None,
                  factor_matrix: Optional[PETSc.Mat] = None, rtol: float = 1e-10, max_it: int = 500,
                  max_columns: int = SCHUR_MAX_COLUMNS, G: Optional[PETSc.Mat] = None,
-                 stiffness: Optional[npt.ArrayLike] = None) -> None:
-        if (dofs is None) == (G is None):
-            raise ValueError("GapNewton takes node rows (dofs) or a matrix G, one of them")
+                 stiffness: Optional[npt.ArrayLike] = None, surface: Optional[tuple[Any, int]] = None) -> None:
+        if sum(a is not None for a in (dofs, G, surface)) != 1:
+            raise ValueError("GapNewton takes node rows (dofs), a matrix G or surface rows (read, m), one of them")
         self.K, self.comm = K, K.getComm().tompi4py()
         self.prefix, self.options = instance_prefix(self.comm, prefix), dict(options or {})
         self.spd, self.linear = symmetric_positive, "schur"
@@ -93,8 +95,14 @@ class GapNewton:
                 raise VIError(f"-{self.prefix}gap_max_columns (or -sdm_gap_max_columns): {max_columns} is not an "
                               f"integer >= 0")
             self.fac = Factorisation(K, symmetric_positive, self.prefix + "factor_", aug=factor_matrix)
-        self.rows: Union[NodeRows, MatrixRows] = (NodeRows(K, self.fac, dofs, max_columns) if G is None
-                                                  else MatrixRows(K, self.fac, G, max_columns))
+        self.rows: Union[NodeRows, MatrixRows, SurfaceRows]
+        if dofs is not None:
+            self.rows = NodeRows(K, self.fac, dofs, max_columns)
+        elif G is not None:
+            self.rows = MatrixRows(K, self.fac, G, max_columns)
+        else:
+            assert surface is not None
+            self.rows = SurfaceRows(K, self.fac, *surface, max_columns)
         self.rows.spd = bool(symmetric_positive)
         m = len(self.rows.g)
         if stiffness is not None:
@@ -108,6 +116,8 @@ class GapNewton:
         diag = K.getDiagonal()
         if isinstance(self.rows, NodeRows):
             read = self.rows.dofs.reshape(-1)
+        elif isinstance(self.rows, SurfaceRows):
+            read = self.rows._local
         else:
             read = np.unique(self.rows._aj) - K.getOwnershipRange()[0]
             read = read[(read >= 0) & (read < K.getLocalSize()[0])]
@@ -129,7 +139,7 @@ class GapNewton:
     def set_rows(self, coef: Optional[npt.ArrayLike], g: npt.ArrayLike) -> None:
         """The rows of the next solve: node rows G_i x = coef[i] . x[dofs[i]] >= g[i]; matrix rows
         (coef None) G_i x >= g[i]."""
-        if isinstance(self.rows, NodeRows):
+        if isinstance(self.rows, (NodeRows, SurfaceRows)):
             self.rows.set(coef, g)
         else:
             self.rows.set(g)

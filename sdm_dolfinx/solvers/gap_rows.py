@@ -1,6 +1,7 @@
 """The gap rows of :mod:`.gap_newton` (where they read x): node rows (:class:`NodeRows`, one node each,
-coefficients given anew before every step: the obstacles) and matrix rows (:class:`MatrixRows`, a
-distributed PETSc matrix fixed for the run: the weighted gap), with what the Newton loop needs of both
+coefficients given anew before every step: the obstacles), matrix rows (:class:`MatrixRows`, a
+distributed PETSc matrix fixed for the run: the weighted gap) and surface rows (:class:`SurfaceRows`,
+ids and coefficients given anew before every step among a fixed set of dofs: contact between bodies), with what the Newton loop needs of both
 (:class:`_Rows`): the cache of columns K^-1 e_j, G x, the dense systems on the cached columns, and the
 Krylov fallback (:mod:`.gap_krylov`) beyond them."""
 from __future__ import annotations
@@ -271,3 +272,65 @@ class MatrixRows(_Rows):
     def destroy(self):
         super().destroy()
         self._xv.destroy(), self._gv.destroy()
+
+
+class SurfaceRows(_Rows):
+    """Rows that read any of a fixed set of global dofs ``read`` (contact surfaces: a row reads its
+    slave node and the nodes of a master facet, which may be another rank's), with ids and coefficients
+    given anew before every solve (:meth:`set`). The columns K^-1 e_j are cached at the ``read`` dofs and
+    replicated on every rank (len(read) numbers per column), so a row that moves to another facet
+    needs no product with the full columns."""
+
+    def __init__(self, K, fac, read, m, max_columns):
+        super().__init__(K, fac, m, max_columns)
+        self.read = np.asarray(read, dtype=np.int64)
+        lo, hi = K.getOwnershipRange()
+        self._own = (self.read >= lo) & (self.read < hi)
+        self._local = (self.read[self._own] - lo).astype(np.int64)
+        self.ids = np.zeros((m, 1), dtype=np.int64)
+        self.coef = np.zeros((m, 1))
+        self._pos = np.zeros((m, 1), dtype=np.int64)
+        self._Zr = np.zeros((len(self.read), 0))
+
+    def set(self, rows, g):
+        ids, coef = rows
+        self.ids, self.coef = np.asarray(ids, dtype=np.int64), np.asarray(coef, dtype=float)
+        self._pos = np.searchsorted(self.read, self.ids)
+        if not self.comm.allreduce(bool(np.all(self.read[np.minimum(self._pos, len(self.read) - 1)] == self.ids)),
+                                   op=MPI.LAND):
+            raise VIError("a contact row reads a dof outside the contact surfaces' (internal error)")
+        self.g[:] = np.asarray(g, dtype=float).reshape(self.g.shape)
+
+    def _gathered(self, local: np.ndarray) -> np.ndarray:
+        """The ``read`` rows of the owned array(s) ``local`` (n_local or n_local x k), on every rank."""
+        out = np.zeros((len(self.read),) + local.shape[1:])
+        out[self._own] = local[self._local]
+        self.comm.Allreduce(MPI.IN_PLACE, out, op=MPI.SUM)
+        return out
+
+    def values(self, x):
+        xr = self._gathered(np.asarray(x))
+        return np.einsum("ik,ik->i", self.coef, xr[self._pos]) if len(self.g) else np.zeros(0)
+
+    def _entries(self, rows):
+        return self.ids[rows], self.coef[rows]
+
+    def _store(self, cols, start):
+        new = self._gathered(np.ascontiguousarray(cols))
+        need = start + cols.shape[1]
+        if need > self._Zr.shape[1]:
+            grown = np.zeros((len(self.read), max(need, 2 * self._Zr.shape[1], 16)))
+            grown[:, :start] = self._Zr[:, :start]
+            self._Zr = grown
+        self._Zr[:, start:need] = new
+
+    def _gz(self, slots):
+        if not len(self.g):
+            return np.zeros((0, len(slots)))
+        return np.einsum("ik,iks->is", self.coef, self._Zr[:, slots][self._pos])
+
+    def _add_transpose(self, rows, mu, out):
+        c = np.zeros(len(self.read))
+        np.add.at(c, self._pos[rows].reshape(-1), (self.coef[rows] * mu[:, None]).reshape(-1))
+        self.comm.Allreduce(MPI.IN_PLACE, c, op=MPI.SUM)
+        out[self._local] += c[self._own]

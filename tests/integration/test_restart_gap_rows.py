@@ -15,7 +15,9 @@ stick and slip sets and multipliers restored as for the unit rows); the built-in
 Coulomb friction on the weighted gap (mu = 0.3, v0 = 100 mm/s, stopped at step 40 of 70: the solver on
 rows, its face dofs' columns recorded by dof; without its stick/slip state restored the test fails, watched;
 without the columns' replay it passes, since that solver's x comes from one more solve per step); a block
-dragged by a conveyor belt (friction against a moving obstacle, stopped at step 150 of 300 while it slips).
+dragged by a conveyor belt (friction against a moving obstacle, stopped at step 150 of 300 while it slips);
+a bar striking a bar at rest (contact between two bodies: demos/two_bars_problem.py, the rows' facets found
+again from U at the restart, stopped at step 60 of 130 during the contact).
 """
 import json
 from pathlib import Path
@@ -31,7 +33,7 @@ from sdm_dolfinx.run import simulate
 COMM = MPI.COMM_WORLD
 RTOL = {"bowl": 0.0 if COMM.size == 1 else 1e-6, "weighted": 0.0 if COMM.size == 1 else 1e-9,
         "bowl-coulomb": 0.0 if COMM.size == 1 else 1e-6, "weighted-coulomb": 0.0 if COMM.size == 1 else 1e-6,
-        "belt-coulomb": 0.0 if COMM.size == 1 else 1e-6}
+        "belt-coulomb": 0.0 if COMM.size == 1 else 1e-6, "two-bars": 0.0 if COMM.size == 1 else 1e-9}
 DEMOS = Path(__file__).resolve().parents[2] / "demos"
 
 
@@ -63,7 +65,7 @@ def _csv(path):
     return np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
 
 
-@pytest.mark.parametrize("case", ["bowl", "weighted", "bowl-coulomb", "weighted-coulomb", "belt-coulomb"])
+@pytest.mark.parametrize("case", ["bowl", "weighted", "bowl-coulomb", "weighted-coulomb", "belt-coulomb", "two-bars"])
 def test_a_run_with_gap_rows_restarts_exactly(case, mpi_tmp_path):
     if case.startswith("bowl"):
         spec = load_file(DEMOS / "bowl_problem.py")
@@ -78,6 +80,9 @@ def test_a_run_with_gap_rows_restarts_exactly(case, mpi_tmp_path):
         make, stop = (lambda: block.problem(COMM, v0=100.0)), 40
         kw = dict(pair="P2/P1", constrain="weighted", dt=1e-4, T=7e-3, friction="coulomb",
                   friction_options={"mu": 0.3})
+    elif case == "two-bars":
+        spec = load_file(DEMOS / "two_bars_problem.py")
+        make, kw, stop = (lambda: spec.problem(COMM, Nx=20, Ny=2)), dict(pair="P2/P1", dt=5e-7, T=6.5e-5), 60
     else:
         spec = load_file(DEMOS / "pushed_block_problem.py")
         make, kw, stop = (lambda: spec.problem(COMM)), dict(pair="P2/P1", constrain="weighted", dt=1e-4, T=7e-3), 40

@@ -1,0 +1,186 @@
+"""The master side of a contact pair (:class:`~sdm_dolfinx.problems.contact_pairs.ContactPair`): its
+facets and their vertices' dofs, gathered on every rank, and the closest-point projection of slave
+points on the deformed surface.
+
+**What is gathered.** Each rank sends, for its master facets (exterior facets belong to the one rank
+holding their cell), the facet's vertex coordinates and the global block numbers of W^h's nodes at
+its vertices. Every rank then holds the whole master surface: an allgather of O(master facets)
+numbers once per run, and the master vertices' displacements once per step (an allreduce of gdim
+numbers per master vertex). A rank needing only the facets near its own slave points (bounding boxes
+first) is the scalable version of this, not built yet.
+
+**The master held at its vertices.** The deformed master facet is the simplex of its deformed vertices
+x_v + u_v (P2's mid-edge nodes do not bend it: its chord), and the master displacement at a point of
+barycentric coordinates xi in it is sum_v xi_v u_v: a row reads the master's vertex dofs only, as the
+slave is held at its vertices (eq. (13)). Measured: the facet's own P2 shape functions (mid-edge nodes
+included, xi_i (2 xi_i - 1) and 4 xi_i xi_j) make the P2/P1 step unstable wherever a slave vertex
+meets a master facet between its vertices (two plane bars on non-matching meshes, head on: the energy
+grows 5.4 times at dt = h/(2c), 10.4 times at dt/4), the vertex weights conserve it (0.6 %, 0.4 %).
+
+**The normal.** The continuous field n(xi) = the master vertices' pseudo-normals (the sum of the
+adjacent facets' outward unit normals; angle-weighted in 3-D) interpolated over the facet, in the
+**reference configuration**: a linear elastic body rotates by less than the model's range (run/
+linear_range.py), and the normals of the deformed P2 surface carry the jitter of the singular mass's
+massless modes. Measured on two discs head on (demos/two_discs_problem.py, P2/P1): the same field
+built on the deformed vertices makes the energy grow 1350 times at level 1 and dt = 2.5e-5 s, 6 times
+at level 3 and dt = 1e-4 s (a facet's own normal, which jumps where a slave vertex crosses a master
+vertex, as much); the reference field keeps the energy within 2 % at every level and step tried, and
+the contact force within 3 % of the single disc's on its plane (tests/physics/test_two_bodies.py;
+the price: at an off-centre contact vertex the normal keeps the undeformed surface's tilt, x/R, where
+the flattened contact zone's is 0). The projection (which facet, xi) and the gap are those of the
+deformed surface: phi = n . (y - q), q the closest point of the slave point y on it.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+from mpi4py import MPI
+
+import numpy as np
+import numpy.typing as npt
+from dolfinx import mesh as dmesh
+
+from sdm_dolfinx import compat
+from sdm_dolfinx.method.dofs import vertex_coordinates
+from sdm_dolfinx.method.errors import DiscretisationError
+from sdm_dolfinx.obstacles.closest import Closest
+from sdm_dolfinx.obstacles.surface_mesh import pseudo_normals
+from sdm_dolfinx.problems.base import label
+
+Array = npt.NDArray[np.float64]
+
+
+def _unit(v: Array) -> Array:
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return np.asarray(v / np.where(n > 0, n, 1.0))
+
+
+def facet_normals(corners: Array) -> Array:
+    """Unit normals (nf, 3) of facets whose corners (nf, nv, 3) are ordered by the convention of
+    :func:`~sdm_dolfinx.obstacles.surface_mesh.element_normals` (2-D: (t_y, -t_x); 3-D: (b - a) x (c - a))."""
+    t = corners[:, 1] - corners[:, 0]
+    if corners.shape[1] == 2:
+        return _unit(np.column_stack([t[:, 1], -t[:, 0], 0.0 * t[:, 0]]))
+    return _unit(np.cross(t, corners[:, 2] - corners[:, 0]))
+
+
+def barycentric(points: Array, corners: Array) -> Array:
+    """Barycentric coordinates (n, nv) of points (n, 3) in the simplices corners (n, nv, 3), the points
+    projected on each simplex's plane (least squares)."""
+    E = np.swapaxes(corners[:, 1:] - corners[:, :1], 1, 2)          # (n, 3, nv - 1)
+    rhs = np.einsum("nji,nj->ni", E, points - corners[:, 0])
+    lam = np.linalg.solve(np.einsum("nji,njk->nik", E, E), rhs[..., None])[..., 0]
+    return np.column_stack([1.0 - lam.sum(axis=1), lam])
+
+
+class MasterSurface:
+    """The master facets of one contact pair, gathered on every rank (see the module).
+
+    Attributes:
+        points: (nv_surface, 3) reference coordinates of the surface's vertices.
+        cells: (nf, nv) each facet's vertices (indices into ``points``), ordered so that
+            :func:`facet_normals` is outward.
+        blocks: (nf, nv) the global block numbers of W^h's nodes at them.
+        dofs: (nd,) the global dofs of W^h the surface reads (sorted; blocks times the block size plus
+            the components).
+        at: (nf, nv, gdim) the positions of each facet vertex's dofs in ``dofs``.
+        vertex_normals: (nv_surface, 3) the vertices' unit pseudo-normals, reference configuration.
+    """
+
+    def __init__(self, d: Any, facets_of: Any, name: str) -> None:
+        p, W, comm = d.problem, d.W, d.comm
+        msh = p.mesh
+        tdim, bs = msh.topology.dim, W.dofmap.index_map_bs
+        fdim, nv = tdim - 1, tdim
+        self.comm, self.bs, self.gdim = comm, bs, int(p.shape[0])
+        if tdim == 1:
+            raise DiscretisationError(f"{label(p)}: contact pairs in 1-D are not built (2-D and 3-D meshes)")
+        facets = np.unique(np.asarray(facets_of(msh), dtype=np.int64).reshape(-1))
+        msh.topology.create_connectivity(fdim, tdim)
+        exterior = np.asarray(dmesh.exterior_facet_indices(msh.topology), dtype=np.int64)
+        nfl = msh.topology.index_map(fdim).size_local + msh.topology.index_map(fdim).num_ghosts
+        wrong = None
+        if facets.size and (facets.min() < 0 or facets.max() >= nfl):
+            wrong = f"contact pair {name!r}: master returned facet indices outside 0..{nfl - 1}"
+        elif not np.all(np.isin(facets, exterior)):
+            wrong = f"contact pair {name!r}: master names {int(np.sum(~np.isin(facets, exterior)))} interior facets"
+        facets = facets[np.isin(facets, exterior)] if wrong is None else np.zeros(0, dtype=np.int64)
+        try:
+            corners, blocks = self._local(d, facets.astype(np.int32), fdim, nv)
+        except DiscretisationError as e:
+            corners, blocks, wrong = np.zeros((0, nv, 3)), np.zeros((0, nv), dtype=np.int64), str(e)
+        found = [m for m in comm.allgather(wrong) if m]
+        if found:
+            raise DiscretisationError(f"{label(p)}: {found[0]}")
+        corners = np.concatenate(comm.allgather(corners))
+        self.blocks = np.concatenate(comm.allgather(blocks)).astype(np.int64)
+        if not len(corners):
+            raise DiscretisationError(f"{label(p)}: contact pair {name!r}: master names no exterior facet")
+        comps = np.arange(self.gdim)
+        self.dofs = np.unique((self.blocks[..., None] * bs + comps).reshape(-1))
+        lo, hi = W.dofmap.index_map.local_range
+        self._own = (self.dofs >= lo * bs) & (self.dofs < hi * bs)
+        self._local_dofs = (self.dofs[self._own] - lo * bs).astype(np.int64)
+        self.at = np.searchsorted(self.dofs, self.blocks[..., None] * bs + comps)
+        _, first, cells = np.unique(self.blocks.reshape(-1), return_index=True, return_inverse=True)
+        self.points = corners.reshape(-1, 3)[first]
+        self.cells = cells.reshape(self.blocks.shape)
+        self.size = float(np.linalg.norm(self.points.max(axis=0) - self.points.min(axis=0)))
+        self.vertex_normals = _unit(pseudo_normals(self.points, self.cells, facet_normals(corners))[0])
+
+    @staticmethod
+    def _local(d: Any, facets: npt.NDArray[np.int32], fdim: int, nv: int) -> tuple[Array, Array]:
+        """(corners (nf, nv, 3) outward-ordered, the global blocks (nf, nv) of W^h's nodes at them) of this
+        rank's facets. A corner's node is found among the facet's closure dofs in its cell (the element's
+        dof layout) by its coordinates, so that a curved (P2-geometry) facet is taken as a straight one."""
+        msh, W = d.problem.mesh, d.W
+        tdim = msh.topology.dim
+        if not facets.size:
+            return np.zeros((0, nv, 3)), np.zeros((0, nv), dtype=np.int64)
+        msh.topology.create_connectivity(fdim, 0)
+        msh.topology.create_connectivity(tdim, fdim)
+        verts = msh.topology.connectivity(fdim, 0).array.reshape(-1, nv)[facets]
+        corners = vertex_coordinates(msh, verts.reshape(-1)).T.reshape(-1, nv, 3).copy()
+        f2c = msh.topology.connectivity(fdim, tdim)
+        cells = f2c.array[f2c.offsets[facets]]
+        x = msh.geometry.x
+        inward = x[compat.mesh_geometry_dofmap(msh)[cells]].mean(axis=1) - corners.mean(axis=1)
+        flip = np.einsum("ij,ij->i", facet_normals(corners), inward) > 0
+        corners[flip, 0], corners[flip, 1] = corners[flip, 1].copy(), corners[flip, 0].copy()
+        local = np.argmax(msh.topology.connectivity(tdim, fdim).array.reshape(-1, tdim + 1)[cells]
+                          == facets[:, None], axis=1)
+        layout = W.dofmap.dof_layout
+        closure = np.array([layout.entity_closure_dofs(fdim, i) for i in range(tdim + 1)], dtype=np.int64)
+        blocks = np.take_along_axis(compat.dofmap_list(W)[cells], closure[local], axis=1)      # (nf, nn)
+        X = d._dof_x()[blocks]                                                                 # (nf, nn, 3)
+        dist = np.linalg.norm(X[:, None, :, :] - corners[:, :, None, :], axis=3)            # (nf, nv, nn)
+        which = np.argmin(dist, axis=2)
+        size = np.linalg.norm(corners[:, 1] - corners[:, 0], axis=1)
+        if np.any(np.take_along_axis(dist, which[..., None], axis=2)[..., 0] > 1e-8 * size[:, None]):
+            raise DiscretisationError("W^h has no node at a master facet's vertex: not built")
+        vblocks = np.take_along_axis(blocks, which, axis=1)
+        glob = W.dofmap.index_map.local_to_global(vblocks.reshape(-1).astype(np.int32)).reshape(vblocks.shape)
+        return corners, np.asarray(glob, dtype=np.int64)
+
+    # ---------------------------------------------------------------- per state
+    def displacements(self, u: Array) -> Array:
+        """The master dofs' values (len(dofs),) of the owned array ``u`` of W^h, on every rank (collective)."""
+        vals = np.zeros(len(self.dofs))
+        vals[self._own] = u[self._local_dofs]
+        self.comm.Allreduce(MPI.IN_PLACE, vals, op=MPI.SUM)
+        return vals
+
+    def project(self, y: Array, vals: Array) -> tuple[Array, Array, Array, Array]:
+        """For the points y (m, 3), with the master dofs' values ``vals``: (signed distances phi (m,), unit
+        normals n (m, 3), the closest facets (m,), the barycentric coordinates xi (m, nv) of the closest
+        points: the master vertices' weights) on the deformed surface (see the module)."""
+        points = self.points.copy()
+        points[self.cells, :self.gdim] += vals[self.at]             # shared corners: the same node's values
+        if len(y) == 0:
+            return np.zeros(0), np.zeros((0, 3)), np.zeros(0, dtype=np.int64), np.zeros((0, self.cells.shape[1]))
+        cur = points[self.cells]
+        q, _, element, _ = Closest(points, self.cells, facet_normals(cur))(y)
+        xi = np.clip(barycentric(q, cur[element]), 0.0, 1.0)
+        xi /= xi.sum(axis=1, keepdims=True)
+        n = _unit(np.einsum("nv,nvk->nk", xi, self.vertex_normals[self.cells[element]]))
+        return np.einsum("ij,ij->i", y - q, n), n, element, xi

@@ -1,0 +1,137 @@
+"""Contact pairs between bodies: the master surface's geometry and shape functions
+(sdm_dolfinx/method/master_surface.py), the rows' structure (body_rows.py), and every combination that is
+not built refused in one line (problems/constraint_checks.py, body_rows.refusal)."""
+from pathlib import Path
+
+from mpi4py import MPI
+
+import numpy as np
+import pytest
+from dolfinx import mesh as dmesh
+
+from sdm_dolfinx.method.discretisation import Discretisation
+from sdm_dolfinx.method.errors import DiscretisationError
+from sdm_dolfinx.method.master_surface import barycentric, facet_normals
+from sdm_dolfinx.problems import ContactPair, ProblemInputError, load_file
+from sdm_dolfinx.run import simulate
+
+COMM = MPI.COMM_WORLD
+DEMOS = Path(__file__).resolve().parents[2] / "demos"
+RNG = np.random.default_rng(7)
+
+
+def _bars(**values):
+    return load_file(DEMOS / "two_bars_problem.py").problem(COMM, **{"Nx": 4, "Ny": 2, **values})
+
+
+def _one_line(e):
+    text = str(e.value)
+    assert "\n" not in text
+    return text
+
+
+# ------------------------------------------------------------------ shape functions and geometry
+def test_barycentric_and_normals():
+    corners = np.array([[[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 3.0, 0.0]]])
+    xi = RNG.dirichlet(np.ones(3), size=20)
+    pts = xi @ corners[0] + np.array([0.0, 0.0, 0.7])             # off the plane: projected
+    np.testing.assert_allclose(barycentric(pts, np.repeat(corners, 20, axis=0)), xi, atol=1e-14)
+    np.testing.assert_allclose(facet_normals(corners), [[0.0, 0.0, 1.0]], atol=1e-15)
+    seg = np.array([[[0.0, 0.0, 0.0], [0.0, 1.0, 0.0]]])               # (t_y, -t_x): +x
+    np.testing.assert_allclose(facet_normals(seg), [[1.0, 0.0, 0.0]], atol=1e-15)
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("pair", ["P2/P1", "P1+/P0", "P1/P0"])
+def test_the_master_face_of_the_two_bars(pair):
+    """Bar 2's end face x = d: outward normal -e_x on every facet and at every vertex, the rows read its
+    vertices' dofs (P2's midpoints not: master_surface.py), and a point at x projects on it at its signed
+    distance d - x, with the weights of the nearest points' vertices."""
+    p = _bars()
+    d = Discretisation(p, pair)
+    s = d.body_rows.surfaces[0]
+    assert s.cells.shape == (2, 2) and len(s.points) == 3                  # Ny = 2 facets, on every rank
+    assert len(s.dofs) == 3 * 2                                            # 3 vertices, 2 components
+    np.testing.assert_allclose(facet_normals(s.points[s.cells]), np.tile([-1.0, 0.0, 0.0], (2, 1)), atol=1e-15)
+    np.testing.assert_allclose(s.vertex_normals, np.tile([-1.0, 0.0, 0.0], (3, 1)), atol=1e-15)
+    gap = p.parameters["gap"] / 2.0
+    y = np.array([[-0.3, 2.5, 0.0], [gap + 0.1, 7.5, 0.0]])
+    phi, n, el, xi = s.project(y, np.zeros(len(s.dofs)))
+    np.testing.assert_allclose(phi, [gap + 0.3, -0.1], atol=1e-12)
+    np.testing.assert_allclose(np.sort(xi, axis=1), [[0.5, 0.5], [0.5, 0.5]], atol=1e-12)   # facet midpoints
+
+
+@pytest.mark.mpi
+def test_the_rows_push_the_bodies_equally_and_oppositely():
+    """Each row's coefficients sum to zero per component (sum_a N_a = 1): G^T lam has no resultant, so
+    the contact conserves the total momentum. Checked on a state that has moved and sheared the master."""
+    d = Discretisation(_bars(Ny=3), "P2/P1")
+    rows = d.body_rows
+    u = RNG.standard_normal(d.W.dofmap.index_map.size_local * 2) * 1e-3
+    (ids, vals), g = rows.rows(u, 0.0, 1e-6, 0.5)
+    assert len(g) == len(rows.dofs) and COMM.allreduce(len(g), op=MPI.SUM) == 4   # the slave face's vertices
+    for comp in (0, 1):
+        np.testing.assert_allclose(np.sum(np.where(ids % 2 == comp, vals, 0.0), axis=1), 0.0, atol=1e-14)
+    assert np.all(np.abs(vals[:, 0] + 1.0) < 1e-6)                          # n = -e_x (bar 2's face) on the slave
+
+
+# ------------------------------------------------------------------ refusals, one line each
+@pytest.mark.parametrize("change, words", [
+    (dict(lower_bound=lambda x: x[0]), "set lower_bound to None"),
+    (dict(constraint_vertices=lambda m: np.zeros(0, dtype=np.int32)), "set constraint_vertices to None"),
+    (dict(contact_pairs=["ends"]), "must hold ContactPair objects, not str"),
+    (dict(contact_pairs="ends"), "must be a list of ContactPair"),
+    (dict(contact_pairs=[ContactPair(None, None, name="a b")]), "distinct words"),
+    (dict(contact_pairs=[], lower_bound=lambda x: x[0]), "constraint_vertices is None and there are no contact_pairs"),
+    (dict(contact_pairs=[]), "lower_bound is None and there are no obstacles or contact_pairs"),
+])
+def test_bad_declarations_are_refused(change, words):
+    p = _bars()
+    for k, v in change.items():
+        setattr(p, k, v)
+    with pytest.raises(ProblemInputError) as e:
+        p.validate()
+        Discretisation(p, "P2/P1")
+    assert words in _one_line(e)
+
+
+@pytest.mark.parametrize("kw, words", [
+    (dict(friction="coulomb", friction_options={"mu": 0.3}), "friction between bodies is not built yet"),
+    (dict(contact="penalty"), "which contact 'penalty' does not take yet"),
+    (dict(scheme="newmark"), "which scheme 'newmark' does not take"),
+    (dict(mass="consistent", pair="P2/P1"), "mass 'consistent'"),
+    (dict(constrain="nodes"), "constrain 'nodes' does not take yet"),
+    (dict(vi_solver="vinewtonrsls"), "semi-smooth Newton with linear strategy schur only"),
+])
+def test_what_is_not_built_is_refused_in_one_line(kw, words, mpi_tmp_path):
+    kw = {"pair": "P2/P1", "dt": 5e-7, "T": 2e-6, **kw}
+    with pytest.raises(Exception) as e:
+        simulate(_bars(), out=mpi_tmp_path / "r", **kw)
+    assert words in _one_line(e)
+
+
+def test_the_equilibrium_start_is_refused(mpi_tmp_path):
+    p = _bars()
+    p.u0 = "equilibrium"
+    with pytest.raises(DiscretisationError) as e:
+        simulate(p, pair="P2/P1", dt=5e-7, T=2e-6, out=mpi_tmp_path / "r")
+    assert "equilibrium start is not built for contact pairs" in _one_line(e)
+
+
+def test_a_master_that_names_interior_facets_is_refused():
+    p = _bars()
+    msh = p.mesh
+    interior = lambda m: np.arange(m.topology.index_map(1).size_local, dtype=np.int32)     # noqa: E731
+    p.contact_pairs = [ContactPair(slave=p.contact_pairs[0].slave, master=interior)]
+    with pytest.raises(DiscretisationError) as e:
+        Discretisation(p, "P2/P1")
+    assert "interior facets" in _one_line(e) and msh is p.mesh
+
+
+def test_an_initial_overlap_is_refused():
+    p = _bars()
+    gap = p.parameters["gap"]
+    p.u0 = lambda x: np.vstack([np.where(x[0] < 0, 2.0 * gap, 0.0), 0.0 * x[1]])
+    with pytest.raises(DiscretisationError) as e:
+        Discretisation(p, "P2/P1").initial_state()
+    assert "inside a master body" in _one_line(e)
