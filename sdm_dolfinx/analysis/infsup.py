@@ -129,21 +129,28 @@ def operators(disc):
 def gap_matrix(disc):
     """The gap rows of ``disc`` as a SciPy CSR matrix on rank 0 (global columns of W^h, None elsewhere),
     or None on every rank for the unit rows of ``cdofs``: the weighted gap's G; against obstacles the
-    rows at the reference configuration (U = 0, t = 0: each node's normal there). Collective."""
+    rows at the reference configuration (U = 0, t = 0: each node's normal there); between bodies (contact
+    pairs) the rows of the reference configuration, slave and master columns. Collective."""
     import scipy.sparse as sp
     comm = disc.comm
     if getattr(disc, "weighted_rows", None) is not None:
         return _gather_csr(disc.weighted_rows.G, comm)
     rows = disc.obstacle_rows
-    if rows is None:
+    bodies = getattr(disc, "body_rows", None)
+    if rows is None and bodies is None:
         return None
     bs = disc.W.dofmap.index_map_bs
     off = disc.W.dofmap.index_map.local_range[0] * bs
-    coef, _ = rows.rows(np.zeros(max(int(rows.dofs.max(initial=-1)) + 1, 1)), 0.0, 0.0, None)
+    zero = np.zeros(disc.W.dofmap.index_map.size_local * bs)
+    if bodies is not None:              # between bodies: the rows at U = 0 (global columns already)
+        (ids, coef), _ = bodies.rows(zero, 0.0, 0.0, None)
+    else:
+        coef, _ = rows.rows(zero, 0.0, 0.0, None)
+        ids = off + rows.dofs
     m, k = coef.shape
     first = comm.exscan(m) or 0
     r = gather_rows(np.repeat(first + np.arange(m, dtype=np.int64), k), comm)
-    c = gather_rows((off + rows.dofs).reshape(-1).astype(np.int64), comm)
+    c = gather_rows(np.asarray(ids).reshape(-1).astype(np.int64), comm)
     v = gather_rows(coef.reshape(-1), comm)
     n = comm.allreduce(m)
     if comm.rank != 0:
@@ -332,7 +339,8 @@ def inspect(problem, pair, tol=TOL, dense_max=DENSE_MAX, constrain="vertices"):
     h = cell_diameter(problem.mesh)
     B, C, cidx, n_dir = operators(disc)
     G = gap_matrix(disc)    # on rank 0
-    if disc.weighted_rows is not None or disc.obstacle_rows is not None:    # general rows, without Dirichlet columns
+    if disc.weighted_rows is not None or disc.obstacle_rows is not None or disc.body_rows is not None:
+        # general rows, without Dirichlet columns
         dirichlet = _gather_global(disc.ddofs, disc.W.dofmap.index_map.local_range[0] * disc.W.dofmap.index_map_bs,
                                    comm)
         if comm.rank == 0:

@@ -122,6 +122,8 @@ def _evaluate(problem, vertices_of_run, time=None):
     nverts = msh.topology.index_map(0).size_local
     if vertices_of_run is not None and nverts != vertices_of_run:
         return {"unknown": f"its problem, built again, has {nverts} vertices, the run had {vertices_of_run}"}
+    if getattr(problem, "contact_pairs", ()):
+        return {"none": f"problem {problem.name!r} has contact pairs: no rigid obstacle (the bodies are drawn)"}
     verts = constrained_vertices(problem, msh)
     if verts.size == 0:
         return {"none": f"problem {problem.name!r} constrains no vertex"}

@@ -135,3 +135,17 @@ def test_an_initial_overlap_is_refused():
     with pytest.raises(DiscretisationError) as e:
         Discretisation(p, "P2/P1").initial_state()
     assert "inside a master body" in _one_line(e)
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("pair, well_posed", [("P2/P1", True), ("P1+/P0", True), ("P1/P1", False), ("P2/P2", False)])
+def test_inspect_measures_condition_7_on_the_rows_between_bodies(pair, well_posed):
+    """The inspector's beta of condition (7) is taken on the two-body rows (slave and master columns): the
+    paper's classes (the well-posed pairs carry every row by a massless W; the standard pairs have none)."""
+    from sdm_dolfinx.analysis.infsup import gap_matrix, inspect
+    G = gap_matrix(Discretisation(_bars(), pair))          # on rank 0
+    if COMM.rank == 0:      # at U = 0 each slave vertex faces its mirror vertex: n = -e_x, -1 there, +1 at the slave
+        assert G.shape[0] == 3 and np.all(np.diff(G.indptr) == 2)
+        np.testing.assert_allclose(np.sort(G.toarray(), axis=1)[:, [0, -1]], np.tile([-1.0, 1.0], (3, 1)), atol=1e-14)
+    r = inspect(_bars(), pair)
+    assert (r["beta"] > 1e-3) == well_posed and r["verdict"] == ("well-posed" if well_posed else "ill-posed")
