@@ -66,13 +66,19 @@ def build(comm, L, H, E, rho, v, v2, Nx, Ny, Ny1, gap_time):
     msh = two_bars_mesh(comm, L, H, d, Nx, Ny, Ny1)
     fdim = msh.topology.dim - 1
 
-    def face(x0):
-        return lambda x: np.isclose(x[0], x0, rtol=0.0, atol=1e-9 * L)
+    def facets(x0, side):
+        """The end face x = x0 of the bar on the ``side`` (-1, +1) of x = 0 (by its cells, so that touching
+        faces differ)."""
+        def found(m):
+            m.topology.create_connectivity(fdim, fdim + 1)
+            f = dmesh.locate_entities_boundary(m, fdim, lambda x: np.isclose(x[0], x0, rtol=0.0, atol=1e-9 * L))
+            f2c = m.topology.connectivity(fdim, fdim + 1)
+            cells = f2c.array[f2c.offsets[f]]
+            mid = dmesh.compute_midpoints(m, fdim + 1, cells)[:, 0] if len(f) else np.zeros(0)
+            return f[side * mid > 0]
+        return found
 
-    def facets(x0):
-        return lambda m: dmesh.locate_entities_boundary(m, fdim, face(x0))
-
-    slave = np.sort(facets(-d)(msh)).astype(np.int32)
+    slave = np.sort(facets(-d, -1)(msh)).astype(np.int32)
     tags = dmesh.meshtags(msh, fdim, slave, np.full(len(slave), 1, dtype=np.int32))
     ds_slave = ufl.Measure("ds", domain=msh, subdomain_data=tags)(1)
     zero = fem.Constant(msh, PETSc.ScalarType((0.0, 0.0)))
@@ -88,7 +94,7 @@ def build(comm, L, H, E, rho, v, v2, Nx, Ny, Ny1, gap_time):
         u0=lambda x: np.zeros((2, x.shape[1])),
         v0=velocity,
         constraint_vertices=None, lower_bound=None,
-        contact_pairs=[ContactPair(slave=facets(-d), master=facets(d), name="ends")],
+        contact_pairs=[ContactPair(slave=facets(-d, -1), master=facets(d, 1), name="ends")],
         constraint_component=0,
         constraint_measure=lambda q: q * ds_slave,
         probe=(-d, H / 2.0),                                       # the middle of the striker's end face

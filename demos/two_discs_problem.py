@@ -52,10 +52,16 @@ def build(comm, level, radius, height, rho, lame_lambda, lame_mu, v):
     msh = two_discs_mesh(comm, LEVELS[level], radius, height)
     fdim = msh.topology.dim - 1
 
-    def half(upper_disc):
-        inside = ((lambda x: (x[1] > 0.0) & (x[1] <= cy + tol)) if upper_disc
-                  else (lambda x: (x[1] < 0.0) & (x[1] >= -cy - tol)))
-        return lambda m: dmesh.locate_entities_boundary(m, fdim, inside)
+    def half(upper):
+        """The disc near the plane of symmetry: the upper disc's lower half (``upper``) or the lower disc's
+        upper half, its boundary facets chosen by their cells' side (touching discs differ)."""
+        def found(m):
+            m.topology.create_connectivity(fdim, fdim + 1)
+            f = dmesh.locate_entities_boundary(m, fdim, lambda x: np.abs(x[1]) <= cy + tol)
+            f2c = m.topology.connectivity(fdim, fdim + 1)
+            mid = dmesh.compute_midpoints(m, fdim + 1, f2c.array[f2c.offsets[f]])[:, 1] if len(f) else np.zeros(0)
+            return f[(mid > 0) == upper]
+        return found
 
     slave = np.sort(half(True)(msh)).astype(np.int32)
     ds_c = ufl.Measure("ds", domain=msh, subdomain_data=dmesh.meshtags(

@@ -16,7 +16,7 @@ from dolfinx import fem, mesh as dmesh
 
 from sdm_dolfinx import compat
 from sdm_dolfinx.method.contact_boundary import CONTACT_TAG as CONTACT_TAG  # noqa: F401  (re-exported)
-from sdm_dolfinx.method.contact_boundary import _facet_vertices, _vertex_flag, contact_facets as contact_facets  # noqa: F401
+from sdm_dolfinx.method.contact_boundary import _facet_vertices, contact_facets as contact_facets, vertex_flag  # noqa: F401
 from sdm_dolfinx.method.contact_boundary import contact_measure as contact_measure  # noqa: F401
 from sdm_dolfinx.method.discretisation import vertex_coordinates, vertex_to_dof
 from sdm_dolfinx.method.errors import DiscretisationError
@@ -25,7 +25,7 @@ def check_on_boundary(d, facets, what):
     """DiscretisationError (one line) when some constrained vertex lies on no contact facet."""
     msh = d.problem.mesh
     fv = _facet_vertices(msh)
-    covered = _vertex_flag(d, np.unique(fv[facets]) if len(facets) else np.zeros(0, dtype=np.int32))
+    covered = vertex_flag(d, np.unique(fv[facets]) if len(facets) else np.zeros(0, dtype=np.int32))
     off = d.comm.allreduce(int(np.count_nonzero(covered[d.q1_of_c] <= 0)), op=MPI.SUM)
     if off:
         raise DiscretisationError(

@@ -76,11 +76,17 @@ def save(folder, comm, fields, active_x, meta, extra=None):
 
 
 def _match(saved_x, x, scale):
-    """Index into saved_x of each point of x (exact match up to round-off), or None."""
+    """Index into saved_x of each point of x (exact match up to round-off), None (no match) or "shared"
+    (two saved points at one point of x: two bodies touching in the reference mesh)."""
     from scipy.spatial import cKDTree
     if len(x) == 0:
         return np.zeros(0, dtype=np.int64)
-    d, idx = cKDTree(saved_x).query(x)
+    k = 2 if len(saved_x) > 1 else 1
+    d, idx = cKDTree(saved_x).query(x, k=k)
+    if k == 2:
+        if np.any(d[:, 1] <= 1e-9 * scale):
+            return "shared"
+        d, idx = d[:, 0], idx[:, 0]
     return idx if np.all(d <= 1e-9 * scale) else None
 
 
@@ -90,6 +96,10 @@ def restore(data, fields, comm):
         x, _ = _owned(space, vec)
         scale = max(float(np.abs(data[name + "_x"]).max(initial=0.0)), 1.0)
         idx = _match(data[name + "_x"], x, scale)
+        if comm.allreduce(isinstance(idx, str), op=MPI.LOR):
+            raise CheckpointError(f"the checkpoint names the {name} dofs by their positions, and two of them share "
+                                  f"one (bodies touching in the reference mesh): this run cannot be restarted; "
+                                  f"start the bodies apart")
         if comm.allreduce(idx is None, op=MPI.LOR):
             raise CheckpointError(f"the checkpoint's {name} dofs do not match this mesh")
         vec.array[:] = data[name][idx].reshape(-1)

@@ -95,8 +95,10 @@ class StateReader:
         k = 2 if len(coords) > 1 else 1
         dist, idx = tree.query(mine, k=k)
         if k == 2:
-            if len(mine) and dist[:, 1].min() <= 1e-9 * scale:
-                raise PostprocessError("two stored dofs share one point: cannot match dofs by coordinates")
+            shared = bool(len(mine)) and bool(dist[:, 1].min() <= 1e-9 * scale)
+            if self.comm.allreduce(shared, op=MPI.LOR):         # every rank: a lone raise would hang the others
+                raise PostprocessError("two stored dofs share one point (bodies touching in the reference mesh?): "
+                                       "cannot match dofs by coordinates")
             dist, idx = dist[:, 0], idx[:, 0]
         bad = int(self.comm.allreduce(int(np.sum(dist > 1e-9 * scale)), op=MPI.SUM))
         if bad:

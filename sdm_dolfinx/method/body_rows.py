@@ -45,6 +45,8 @@ import numpy as np
 import numpy.typing as npt
 from dolfinx import fem
 
+from sdm_dolfinx.method.contact_boundary import vertex_flag
+from sdm_dolfinx.method.dofs import vertex_to_dof
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.method.master_surface import MasterSurface
 from sdm_dolfinx.problems.base import label
@@ -94,7 +96,21 @@ class BodyRows:
         self.x = np.asarray(d.cx, dtype=float)
         lo = W.dofmap.index_map.local_range[0] * bs
         self.surfaces = [MasterSurface(d, pair.master, pair.name) for pair in p.contact_pairs]
-        self._member = np.array([np.isin(d.cverts, slave_vertices([pair], msh)) for pair in p.contact_pairs])
+        # which pairs hold each slave vertex: flagged on Q1 and summed into the owners (a vertex's owner need
+        # not hold any of its slave facets)
+        q1 = vertex_to_dof(d.Q1, d.cverts)
+        self._member = np.array([vertex_flag(d, slave_vertices([pair], msh))[q1] > 0 for pair in p.contact_pairs])
+        blocks = (self.dofs[:, 0] + W.dofmap.index_map.local_range[0] * bs) // bs
+        for k, (pair, s) in enumerate(zip(p.contact_pairs, self.surfaces)):
+            own = self.comm.allreduce(int(np.count_nonzero(np.isin(blocks[self._member[k]], s.blocks))), op=MPI.SUM)
+            if own:
+                raise DiscretisationError(f"{label(p)}: contact pair {pair.name!r}: {own} slave vertices are on its "
+                                          f"master surface too (a body's own facets, or faces that coincide): the "
+                                          f"slave and master facets must be different bodies'")
+        lost = self.comm.allreduce(int(np.count_nonzero(~self._member.any(axis=0))), op=MPI.SUM)
+        if lost:
+            raise DiscretisationError(f"{label(p)}: {lost} constrained vertices belong to no contact pair's slave "
+                                      f"facets (internal error)")
         # every node of W^h on each pair's slave facets (owned): gap_min_boundary
         self._bnodes = []
         for pair in p.contact_pairs:
@@ -125,35 +141,48 @@ class BodyRows:
         self.size = max(float(np.max(ext[3:] + ext[:3])), 1e-300)
         self.carried = np.zeros((len(self.dofs), self.gdim))
         self.free = np.ones(self.dofs.shape, dtype=bool)
+        self._kept: dict[Any, Any] = {}
 
     # ---------------------------------------------------------------- projections
-    def _closest(self, u: Array, x: Array, dofs: Array, member: Any) -> tuple[Array, list[Any]]:
+    def _closest(self, u: Array, x: Array, dofs: Array, member: Any, key: Any = None) -> tuple[Array, list[Any]]:
         """(phi (n,), per pair (which points, normals, facets, barycentric weights, master values)) of the points
-        at reference ``x`` (3, n) with dofs ``dofs`` (n, gdim) in the state ``u`` (collective)."""
+        at reference ``x`` (3, n) with dofs ``dofs`` (n, gdim) in the state ``u`` (collective). With ``key``, the
+        answer for the same points and the same values of u there and on the master surfaces is kept: a
+        step's rows, its gap and the time series' gaps project the same state (decided on every rank)."""
+        vals = [s.displacements(u) for s in self.surfaces]     # collective: every rank, every pair
+        mine = np.array(u[dofs]) if len(dofs) else np.zeros((0, self.gdim))
+        kept = self._kept.get(key) if key is not None else None
+        same = kept is not None and np.array_equal(kept[0], mine) and all(
+            np.array_equal(a, b) for a, b in zip(kept[1], vals))
+        if self.comm.allreduce(bool(same) if key is not None else False, op=MPI.LAND):
+            assert kept is not None
+            return kept[2]
         y = np.array(x.T, dtype=float, copy=True)
         if len(dofs):
-            y[:, :self.gdim] += u[dofs]
+            y[:, :self.gdim] += mine
         phi, best, found = np.full(len(y), np.inf), np.full(len(y), -1), []
         for k, s in enumerate(self.surfaces):
-            vals = s.displacements(u)                   # collective: every rank, every pair
             sel = np.flatnonzero(member[k])
-            ph, n, el, N = s.project(y[sel], vals)
+            ph, n, el, xi = s.project(y[sel], vals[k])
             closer = ph < phi[sel]
             phi[sel[closer]], best[sel[closer]] = ph[closer], k
-            found.append((sel, n, el, N, vals))
-        return phi, [(sel[best[sel] == k], *(a[best[sel] == k] for a in (n, el, N)), vals)
-                     for k, (sel, n, el, N, vals) in enumerate(found)]
+            found.append((sel, n, el, xi, vals[k]))
+        out = phi, [(sel[best[sel] == k], *(a[best[sel] == k] for a in (n, el, xi)), v)
+                    for k, (sel, n, el, xi, v) in enumerate(found)]
+        if key is not None:
+            self._kept[key] = (mine, vals, out)
+        return out
 
     def phi(self, u: Array, t: float = 0.0, boundary: bool = False) -> Array:
         """The signed distances (local) of the slave vertices (``boundary``: of every node of the slave
         facets) to their master surfaces in the state ``u`` (collective)."""
         if not boundary:
-            return self._closest(u, self.x, self.dofs, self._member)[0]
+            return self._closest(u, self.x, self.dofs, self._member, key="vertices")[0]
         out = []
         for k, (dofs, x) in enumerate(self._bnodes):
             member = np.zeros((len(self.surfaces), len(dofs)), dtype=bool)
             member[k] = True
-            out.append(self._closest(u, x, dofs, member)[0])
+            out.append(self._closest(u, x, dofs, member, key=("boundary", k))[0])
         return np.concatenate(out) if out else np.zeros(0)
 
     def gap(self, u: Array, t: float = 0.0, boundary: bool = False) -> float:
@@ -177,7 +206,7 @@ class BodyRows:
     def rows(self, u: Array, t0: float, t1: float, weight: float) -> tuple[tuple[Any, Array], Array]:
         """((ids (m, k) global dofs, values (m, k)), g (m,)) of the step linearised at ``u`` = U^n (see the
         module; collective)."""
-        phi, per_pair = self._closest(u, self.x, self.dofs, self._member)
+        phi, per_pair = self._closest(u, self.x, self.dofs, self._member, key="vertices")
         m, g = len(self.dofs), self.gdim
         width = g + max((s.at.shape[1] * g for s in self.surfaces), default=0)
         ids, vals = np.full((m, width), -1, dtype=np.int64), np.zeros((m, width))

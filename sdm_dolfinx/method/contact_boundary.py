@@ -18,7 +18,7 @@ from sdm_dolfinx.problems.contact_pairs import constrained_vertices
 CONTACT_TAG = 1
 
 
-def _vertex_flag(d, vertices):
+def vertex_flag(d, vertices):
     """1.0 at the Q1 dofs of the local ``vertices`` on any rank, consistent on ghosts."""
     flag = fem.Function(d.Q1)
     if len(vertices):
@@ -43,7 +43,7 @@ def contact_facets(d):
     msh = d.problem.mesh
     fv = _facet_vertices(msh)
     nv = msh.topology.index_map(0).size_local + msh.topology.index_map(0).num_ghosts
-    marked = _vertex_flag(d, constrained_vertices(d.problem, msh))
+    marked = vertex_flag(d, constrained_vertices(d.problem, msh))
     all_marked = np.all(marked[vertex_to_dof(d.Q1, np.arange(nv))[fv]] > 0, axis=1)
     exterior = np.asarray(dmesh.exterior_facet_indices(msh.topology), dtype=np.int32)
     return np.sort(exterior[all_marked[exterior]]).astype(np.int32)

@@ -39,15 +39,23 @@ from mpi4py import MPI
 import numpy as np
 import numpy.typing as npt
 from dolfinx import mesh as dmesh
+from scipy.spatial import cKDTree
 
 from sdm_dolfinx import compat
 from sdm_dolfinx.method.dofs import vertex_coordinates
 from sdm_dolfinx.method.errors import DiscretisationError
-from sdm_dolfinx.obstacles.closest import Closest
+from sdm_dolfinx.obstacles.closest import on_segments, on_triangles
 from sdm_dolfinx.obstacles.surface_mesh import pseudo_normals
 from sdm_dolfinx.problems.base import label
 
 Array = npt.NDArray[np.float64]
+#: a slave point is projected on the CANDIDATES facets of nearest centroids, and exactly (every facet that
+#: can be nearer) when it is within NEAR sizes of the best of them
+CANDIDATES = 8
+NEAR = 2.0
+#: a slave point whose closest point is on the surface's rim and which lies more than this many facet sizes
+#: off to the side of it is beyond the surface (no row)
+RIM = 1e-2
 
 
 def _unit(v: Array) -> Array:
@@ -71,6 +79,31 @@ def barycentric(points: Array, corners: Array) -> Array:
     rhs = np.einsum("nji,nj->ni", E, points - corners[:, 0])
     lam = np.linalg.solve(np.einsum("nji,njk->nik", E, E), rhs[..., None])[..., 0]
     return np.column_stack([1.0 - lam.sum(axis=1), lam])
+
+
+def _best(y: Array, point: npt.NDArray[np.int64], facet: npt.NDArray[np.int64],
+          cur: Array) -> tuple[Array, Array, Array]:
+    """(closest points (m, 3), facets (m,), distances (m,)) of the points y over the pairs (point, facet)
+    (every point in at least one pair)."""
+    corners = [cur[facet, j] for j in range(cur.shape[1])]
+    q = (on_segments(y[point], *corners) if cur.shape[1] == 2 else on_triangles(y[point], *corners))[0]
+    d = np.linalg.norm(y[point] - q, axis=1)
+    order = np.lexsort((d, point))
+    first = order[np.searchsorted(point[order], np.arange(len(y)))]
+    return q[first], facet[first], d[first]
+
+
+def _rim(cells: npt.NDArray[np.int64]) -> npt.NDArray[np.bool_]:
+    """(nf, nv): whether the facet's side opposite each corner lies on the surface's open boundary (2-D:
+    the side opposite corner j is the vertex 1 - j, on the rim when it ends one facet only; 3-D: the edge
+    of the two other corners, on the rim when one facet only has it)."""
+    nf, nv = cells.shape
+    if nv == 2:
+        count = np.bincount(cells.reshape(-1), minlength=int(cells.max(initial=-1)) + 1)
+        return count[cells[:, ::-1]] == 1
+    edges = np.sort(np.stack([cells[:, [1, 2]], cells[:, [2, 0]], cells[:, [0, 1]]], axis=1), axis=2)
+    _, inverse, count = np.unique(edges.reshape(-1, 2), axis=0, return_inverse=True, return_counts=True)
+    return (count[inverse.reshape(-1)] == 1).reshape(nf, 3)
 
 
 class MasterSurface:
@@ -127,6 +160,7 @@ class MasterSurface:
         self.cells = cells.reshape(self.blocks.shape)
         self.size = float(np.linalg.norm(self.points.max(axis=0) - self.points.min(axis=0)))
         self.vertex_normals = _unit(pseudo_normals(self.points, self.cells, facet_normals(corners))[0])
+        self.rim = _rim(self.cells)
 
     @staticmethod
     def _local(d: Any, facets: npt.NDArray[np.int32], fdim: int, nv: int) -> tuple[Array, Array]:
@@ -170,6 +204,34 @@ class MasterSurface:
         self.comm.Allreduce(MPI.IN_PLACE, vals, op=MPI.SUM)
         return vals
 
+    def _closest(self, cur: Array, y: Array) -> tuple[Array, Array]:
+        """(closest points (m, 3), facets (m,)) of the points y on the deformed facets ``cur``: the best of
+        the :data:`CANDIDATES` facets of nearest centroids, then, for the points within :data:`NEAR` sizes
+        of that facet (its largest centroid-to-vertex distance r), every facet that can do better: its
+        centroid within the best distance + its own r (facets grouped by r within a factor 2, one KD-tree
+        query per group, so that a refined contact zone is not searched with the coarse facets' r). A
+        farther point keeps the first answer, whose gap is an upper bound of the true one: such a point
+        cannot reach the surface within a step."""
+        centroids = cur.mean(axis=1)
+        radii = np.max(np.linalg.norm(cur - centroids[:, None], axis=2), axis=1)
+        k = min(CANDIDATES, len(cur))
+        cand = cKDTree(centroids).query(y, k=k)[1].reshape(len(y), k)
+        q, element, dist = _best(y, np.repeat(np.arange(len(y)), k), cand.reshape(-1), cur)
+        near = np.flatnonzero(dist <= NEAR * radii[element])
+        if near.size:
+            group = np.floor(np.log2(np.maximum(radii, 1e-300))).astype(np.int64)
+            yn = y[near]
+            point: list[Any] = [np.arange(len(near))]
+            facet: list[Any] = [element[near]]
+            for g in np.unique(group):
+                members = np.flatnonzero(group == g)
+                lists = cKDTree(centroids[members]).query_ball_point(yn, dist[near] + radii[members].max())
+                point.append(np.repeat(np.arange(len(near)), [len(ell) for ell in lists]))
+                facet.append(members[np.fromiter((e for ell in lists for e in ell), dtype=np.int64,
+                                                 count=int(sum(len(ell) for ell in lists)))])
+            q[near], element[near], _ = _best(yn, np.concatenate(point), np.concatenate(facet), cur)
+        return q, element
+
     def project(self, y: Array, vals: Array) -> tuple[Array, Array, Array, Array]:
         """For the points y (m, 3), with the master dofs' values ``vals``: (signed distances phi (m,), unit
         normals n (m, 3), the closest facets (m,), the barycentric coordinates xi (m, nv) of the closest
@@ -179,8 +241,18 @@ class MasterSurface:
         if len(y) == 0:
             return np.zeros(0), np.zeros((0, 3)), np.zeros(0, dtype=np.int64), np.zeros((0, self.cells.shape[1]))
         cur = points[self.cells]
-        q, _, element, _ = Closest(points, self.cells, facet_normals(cur))(y)
+        q, element = self._closest(cur, y)
         xi = np.clip(barycentric(q, cur[element]), 0.0, 1.0)
         xi /= xi.sum(axis=1, keepdims=True)
         n = _unit(np.einsum("nv,nvk->nk", xi, self.vertex_normals[self.cells[element]]))
-        return np.einsum("ij,ij->i", y - q, n), n, element, xi
+        r = y - q
+        phi = np.einsum("ij,ij->i", r, n)
+        # beyond the surface's rim (its closest point on the open boundary, the point off to the side): no
+        # contact with this surface, not an imaginary plane through the rim (no row: n = 0, its distance)
+        on_rim = np.any((xi < 1e-12) & self.rim[element], axis=1) if xi.shape[1] == 3 else \
+            np.any((xi > 1.0 - 1e-12) & self.rim[element][:, ::-1], axis=1)
+        lateral = np.linalg.norm(r - phi[:, None] * n, axis=1)
+        size = np.linalg.norm(cur[element, 1] - cur[element, 0], axis=1)
+        off = on_rim & (lateral > RIM * size)
+        n[off], phi[off] = 0.0, np.linalg.norm(r[off], axis=1)
+        return phi, n, element, xi

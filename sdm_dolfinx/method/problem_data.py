@@ -10,6 +10,7 @@ import numpy as np
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.problems.base import bound_at, label, one_line
 from sdm_dolfinx.problems.contact_pairs import constrained_vertices
+from sdm_dolfinx.problems.errors import ProblemInputError
 
 
 def refuse(problem, comm, wrong):
@@ -23,12 +24,15 @@ def refuse(problem, comm, wrong):
 def vertices(problem, comm):
     """``problem.constraint_vertices(mesh)``: local vertex indices (0 .. owned + ghost vertices - 1)."""
     msh = problem.mesh
-    verts = np.asarray(constrained_vertices(problem, msh))
     nall = msh.topology.index_map(0).size_local + msh.topology.index_map(0).num_ghosts
     wrong = None
-    if verts.size and not np.issubdtype(verts.dtype, np.integer):
+    try:
+        verts = np.asarray(constrained_vertices(problem, msh))
+    except ProblemInputError as e:          # on this rank: refused on every rank below
+        verts, wrong = np.zeros(0, dtype=np.int32), str(e).removeprefix(f"problem {problem.name!r}: ")
+    if wrong is None and verts.size and not np.issubdtype(verts.dtype, np.integer):
         wrong = f"constraint_vertices returned {verts.dtype} values, not vertex indices (integers)"
-    elif verts.size and (verts.min() < 0 or verts.max() >= nall):
+    elif wrong is None and verts.size and (verts.min() < 0 or verts.max() >= nall):
         wrong = (f"constraint_vertices returned vertex indices outside 0..{nall - 1}, the mesh's local vertices "
                  f"(got {int(verts.min())}..{int(verts.max())})")
     refuse(problem, comm, wrong)

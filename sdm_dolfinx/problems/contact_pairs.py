@@ -47,12 +47,30 @@ class ContactPair:
 
 
 def slave_vertices(pairs: Sequence[ContactPair], mesh: Mesh) -> npt.NDArray[np.int32]:
-    """The local vertices of the slave facets of every pair (sorted, unique)."""
+    """The local vertices of the slave facets of every pair (sorted, unique).
+
+    Raises:
+        ProblemInputError: a pair's slave facets are not exterior facets of the mesh (indices out of
+            range, or interior facets); on this rank only: callers refuse on every rank.
+    """
+    from dolfinx import mesh as dmesh
     tdim = mesh.topology.dim
     mesh.topology.create_connectivity(tdim - 1, 0)
+    mesh.topology.create_connectivity(tdim - 1, tdim)
     f2v = mesh.topology.connectivity(tdim - 1, 0).array.reshape(-1, tdim)
-    facets = np.concatenate([np.asarray(p.slave(mesh), dtype=np.int64).reshape(-1) for p in pairs]) \
-        if pairs else np.zeros(0, dtype=np.int64)
+    exterior = np.asarray(dmesh.exterior_facet_indices(mesh.topology), dtype=np.int64)
+    found = []
+    for p in pairs:
+        facets = np.asarray(p.slave(mesh)).reshape(-1)
+        if facets.size and not np.issubdtype(facets.dtype, np.integer):
+            raise ProblemInputError(f"contact pair {p.name!r}: slave returned {facets.dtype} values, not facet indices")
+        if facets.size and (facets.min() < 0 or facets.max() >= len(f2v)):
+            raise ProblemInputError(f"contact pair {p.name!r}: slave returned facet indices outside 0..{len(f2v) - 1}")
+        if not np.all(np.isin(facets, exterior)):
+            raise ProblemInputError(f"contact pair {p.name!r}: slave names {int(np.sum(~np.isin(facets, exterior)))} "
+                                    f"interior facets (the slave and master sides are boundary facets)")
+        found.append(facets.astype(np.int64))
+    facets = np.concatenate(found) if found else np.zeros(0, dtype=np.int64)
     return np.unique(f2v[facets].reshape(-1)).astype(np.int32) if facets.size else np.zeros(0, dtype=np.int32)
 
 

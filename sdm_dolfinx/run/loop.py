@@ -221,7 +221,11 @@ class _Loop:
     def run(self, stop, progress, on_step, checkpoint_every, constraint_tol):
         """Steps first..nsteps; a failed step leaves the files at the last good step."""
         files, n = self.files, self.first
-        scale = max(self.comm.allreduce(float(np.max(np.abs(self.discretisation.lb), initial=0.0)), op=MPI.MAX), 1.0)
+        d = self.discretisation
+        rows = d.obstacle_rows if d.obstacle_rows is not None else d.body_rows
+        bound = np.abs(d.lb[np.isfinite(d.lb)])       # NaN against obstacles and bodies: their gaps are distances
+        scale = rows.size if rows is not None else max(self.comm.allreduce(float(np.max(bound, initial=0.0)),
+                                                                            op=MPI.MAX), 1.0)
         saved = None
         try:
             if not self.restarted:

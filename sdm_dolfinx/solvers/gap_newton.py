@@ -163,7 +163,7 @@ class GapNewton:
         scale = max(b.norm(PETSc.NormType.NORM_INFINITY), 1e-300)
         tol_lam = self.rtol * scale
         tol_x = tol_lam / self.r
-        active = self.active.copy()
+        active = self.active.copy() & getattr(rows, "alive", True)      # a row without coefficients holds nothing
         first = self.comm.exscan(len(rows.g)) or 0
         murty = MurtyRule(first + np.arange(len(rows.g)), self.comm)
         for it in range(1, self.max_it + 1):

@@ -296,6 +296,8 @@ class SurfaceRows(_Rows):
         ids, coef = rows
         self.ids, self.coef = np.asarray(ids, dtype=np.int64), np.asarray(coef, dtype=float)
         self._pos = np.searchsorted(self.read, self.ids)
+        #: the rows with a coefficient (a row without one holds nothing this step: never active)
+        self.alive = np.any(self.coef != 0.0, axis=1)
         if not self.comm.allreduce(bool(np.all(self.read[np.minimum(self._pos, len(self.read) - 1)] == self.ids)),
                                    op=MPI.LAND):
             raise VIError("a contact row reads a dof outside the contact surfaces' (internal error)")

@@ -149,3 +149,49 @@ def test_inspect_measures_condition_7_on_the_rows_between_bodies(pair, well_pose
         np.testing.assert_allclose(np.sort(G.toarray(), axis=1)[:, [0, -1]], np.tile([-1.0, 1.0], (3, 1)), atol=1e-14)
     r = inspect(_bars(), pair)
     assert (r["beta"] > 1e-3) == well_posed and r["verdict"] == ("well-posed" if well_posed else "ill-posed")
+
+
+def test_a_point_beyond_the_rim_of_the_master_has_no_row():
+    """The master face of the bars ends at y = 0 and y = H: a point above its top corner, off to the side by
+    more than the rim tolerance, is beyond the surface (no normal: its row holds nothing, its gap is its
+    distance to the corner), while a point just above the face's middle is held along -e_x."""
+    p = _bars()
+    s = Discretisation(p, "P2/P1").body_rows.surfaces[0]
+    gap, H = p.parameters["gap"] / 2.0, p.parameters["H"]
+    y = np.array([[gap - 0.5, H + 2.0, 0.0], [gap - 0.5, H / 2.0, 0.0]])
+    phi, n, _, _ = s.project(y, np.zeros(len(s.dofs)))
+    np.testing.assert_allclose(n[0], 0.0) and np.testing.assert_allclose(phi[0], np.hypot(0.5, 2.0), rtol=1e-12)
+    np.testing.assert_allclose(n[1], [-1.0, 0.0, 0.0], atol=1e-15)
+    np.testing.assert_allclose(phi[1], 0.5, rtol=1e-12)
+
+
+@pytest.mark.parametrize("slave, words", [
+    (lambda m: np.array([-1], dtype=np.int32), "slave returned facet indices outside"),
+    (lambda m: np.arange(m.topology.index_map(1).size_local, dtype=np.int32), "interior facets"),
+])
+def test_bad_slave_facets_are_refused(slave, words):
+    p = _bars()
+    p.contact_pairs = [ContactPair(slave=slave, master=p.contact_pairs[0].master)]
+    with pytest.raises(DiscretisationError) as e:
+        Discretisation(p, "P2/P1")
+    assert words in _one_line(e)
+
+
+def test_a_body_that_is_its_own_master_is_refused():
+    p = _bars()
+    p.contact_pairs = [ContactPair(slave=p.contact_pairs[0].slave, master=p.contact_pairs[0].slave)]
+    with pytest.raises(DiscretisationError) as e:
+        Discretisation(p, "P2/P1")
+    assert "slave vertices are on its master surface too" in _one_line(e)
+
+
+def test_bodies_touching_in_the_reference_mesh_cannot_restart(mpi_tmp_path):
+    """A checkpoint names dofs by their positions: two bodies sharing node positions make a restart
+    ambiguous, which is refused in one line (a silent mix-up of the bodies' states before)."""
+    from sdm_dolfinx.io.checkpoint import CheckpointError
+    kw = dict(pair="P1+/P0", dt=5e-7, T=5e-6)
+    simulate(_bars(gap_time=0.0), out=mpi_tmp_path / "r", **kw)
+    with pytest.raises(Exception) as e:
+        simulate(_bars(gap_time=0.0), out=mpi_tmp_path / "r", restart=True, **{**kw, "T": 1e-5})
+    assert isinstance(e.value, CheckpointError) or "cannot be restarted" in str(e.value)
+    assert "share" in _one_line(e) and "cannot be restarted" in _one_line(e)
