@@ -1,16 +1,21 @@
-"""Two identical elastic balls meeting head on: contact between two deformable 3-D bodies (a problem file).
+"""Two elastic balls meeting head on: contact between two deformable 3-D bodies (a problem file).
 
     python -m sdm_dolfinx run --problem-file demos/two_balls_problem.py --out output/two_balls
+    python -m sdm_dolfinx run --problem-file demos/two_balls_problem.py --R2 10 --E2 40 --rho2 3e-9 --v2 0
 
-The built-in ball (R = 20 mm, E = 10 N/mm^2, nu = 0.3, rho = 1000 kg/m^3, the gmsh mesh of ``--level``
-refined toward its south pole) centred at (0, 0, R + d) moving down at v, and its mirror image in the
-plane z = 0 moving up at v, one mesh of two connected parts, no gravity. Contact pair: the vertices of
-ball 1's lower hemisphere (slave) stay outside ball 2's upper hemisphere (master), frictionless.
+Ball 1: the built-in ball (R = 20 mm, E = 10 N/mm^2, nu = 0.3, rho = 1000 kg/m^3, the gmsh mesh of
+``--level`` refined toward its south pole) centred at (0, 0, R + d) moving down at v. Ball 2: its mirror
+image in the plane z = 0 moving up at v (by default), or a ball of its own (--R2, --E2, --nu2, --rho2,
+--v2: its own mesh, refined toward its north pole), one mesh of two connected parts with the
+materials and densities per cell (DG0), no gravity. Contact pair: the vertices of ball 1's lower
+hemisphere (slave) stay outside ball 2's upper hemisphere (master), frictionless.
 
-Hertz: two equal spheres at +-v have the reduced radius R/2, the reduced modulus E*/2 and the reduced
-mass m/2, and approach each other at 2v; their mutual approach is twice the single ball's on a rigid
-plane at v, and the force and the contact time are the single ball's: F_max = 3.161 N and
-t_c = 3.896 ms at the defaults (:func:`sdm_dolfinx.problems.ball.hertz`). By symmetry each ball is the
+Hertz for two elastic spheres (:func:`hertz_two`): the curvatures add, 1/R* = 1/R1 + 1/R2, the
+compliances add, 1/E* = (1 - nu1^2)/E1 + (1 - nu2^2)/E2, the masses combine into the reduced mass
+m* = m1 m2 / (m1 + m2), and the approach speed is v1 + v2: the one-sphere formulas of
+:func:`sdm_dolfinx.problems.ball.hertz` with these (derivation there). Two equal spheres at +-v
+approach twice as much as the single ball on a rigid plane at v, with the same force and contact
+time: F_max = 3.161 N and t_c = 3.896 ms at the defaults; by symmetry each ball is then the
 built-in ball on its plane (``python -m sdm_dolfinx ball --height d``), whose mesh is ball 1's.
 
 Units: mm, N, s, tonne (stresses in MPa, energies in mJ, momenta in N s).
@@ -28,35 +33,64 @@ from sdm_dolfinx.problems import ContactPair, Param, Problem, ProblemSpec
 from sdm_dolfinx.problems import ball, ball_mesh
 
 
-def two_balls_mesh(comm, level, radius, height, a):
+def hertz_two(R1, E1, nu1, rho1, v1, R2, E2, nu2, rho2, v2):
+    """Hertz's impact of two elastic spheres approaching at v1 + v2 (see the module): ``ball.hertz`` of the
+    reduced radius, modulus and mass (its ``E_star`` and ``mass`` are the reduced ones, ``a`` the contact
+    radius, ``t_c`` the contact time)."""
+    E_star = 1.0 / ((1.0 - nu1 ** 2) / E1 + (1.0 - nu2 ** 2) / E2)
+    m1, m2 = (rho * 4.0 / 3.0 * np.pi * R ** 3 for rho, R in ((rho1, R1), (rho2, R2)))
+    # ball.hertz takes E and nu: E = E_star with nu = 0 gives its E* = E_star
+    return ball.hertz(1.0 / (1.0 / R1 + 1.0 / R2), E_star, 0.0, None, v1 + v2, mass=m1 * m2 / (m1 + m2))
+
+
+def _ball_points(level, radius, height, a):
+    """(points, cells) of the built-in ball's mesh of ``radius`` centred at (0, 0, radius + height)."""
+    hf, hc = ball.mesh_sizes(level, None, None, radius, a)
+    one, _ = ball_mesh.make_mesh(hf, hc, a, radius, (0.0, 0.0, radius + height), comm=MPI.COMM_SELF)
+    return np.asarray(one.geometry.x, dtype=float), np.asarray(mesh_geometry_dofmap(one), dtype=np.int64)
+
+
+def two_balls_mesh(comm, level, radius, height, a, radius2=None):
     """Ball 1 of ``radius`` centred at (0, 0, radius + height) (the built-in ball's gmsh mesh at ``level``,
-    curved P2 tetrahedra) and its mirror image in z = 0, one mesh partitioned by dolfinx over ``comm``."""
+    curved P2 tetrahedra) and, below the plane z = 0, its mirror image or (``radius2``) the mirror image of
+    a ball of that radius: one mesh partitioned by dolfinx over ``comm``."""
     if comm.rank == 0:
-        hf, hc = ball.mesh_sizes(level, None, None, radius, a)
-        one, _ = ball_mesh.make_mesh(hf, hc, a, radius, (0.0, 0.0, radius + height), comm=MPI.COMM_SELF)
-        x1 = np.asarray(one.geometry.x, dtype=float)
-        cells1 = np.asarray(mesh_geometry_dofmap(one), dtype=np.int64)
-        x = np.vstack([x1, x1 * np.array([1.0, 1.0, -1.0])])
-        cells = np.vstack([cells1, cells1 + len(x1)])
+        x1, cells1 = _ball_points(level, radius, height, a)
+        x2, cells2 = (x1, cells1) if radius2 in (None, radius) else _ball_points(level, radius2, height, a)
+        x = np.vstack([x1, x2 * np.array([1.0, 1.0, -1.0])])
+        cells = np.vstack([cells1, cells2 + len(x1)])
     else:
         x, cells = np.zeros((0, 3)), np.zeros((0, 10), dtype=np.int64)
     return create_mesh(comm, cells, x, ufl.Mesh(compat.element("Lagrange", "tetrahedron", 2, (3,))))
 
 
-def build(comm, level, radius, height, E, nu, rho, v):
+def _per_ball(msh, upper, lower):
+    """A DG0 Function equal to ``upper`` on ball 1's cells (z > 0) and ``lower`` on ball 2's."""
+    f = fem.Function(compat.function_space(msh, compat.element("DG", "tetrahedron", 0)))
+    cells = np.arange(msh.topology.index_map(3).size_local + msh.topology.index_map(3).num_ghosts, dtype=np.int32)
+    f.x.array[:] = np.where(dmesh.compute_midpoints(msh, 3, cells)[:, 2] > 0.0, upper, lower)
+    return f
+
+
+def build(comm, level, radius, height, E, nu, rho, v, R2, E2, nu2, rho2, v2):
     """The two balls for declared values (see PARAMS)."""
-    ref = ball.hertz(radius, E, nu, rho, v)
-    cy, tol = radius + height, 1e-8 * radius
-    msh = two_balls_mesh(comm, level, radius, height, ref["a"])
+    R2, E2, nu2, rho2, v2 = (radius if R2 is None else R2, E if E2 is None else E2, nu if nu2 is None else nu2,
+                             rho if rho2 is None else rho2, v if v2 is None else v2)
+    ref = hertz_two(radius, E, nu, rho, v, R2, E2, nu2, rho2, v2)
+    cy, tol = max(radius, R2) + height, 1e-8 * radius
+    msh = two_balls_mesh(comm, level, radius, height, ref["a"], R2)
     fdim = msh.topology.dim - 1
-    lmbda, mu = ball.lame(E, nu)
+    (l1, m1), (l2, m2) = ball.lame(E, nu), ball.lame(E2, nu2)
+    lmbda, mu = _per_ball(msh, l1, l2), _per_ball(msh, m1, m2)
+    density = rho if rho2 == rho else _per_ball(msh, rho, rho2)
 
     def half(upper):
         """The ball near the plane of symmetry: the upper ball's lower half (``upper``) or the lower ball's
         upper half, its boundary facets chosen by their cells' side (touching balls differ)."""
         def found(m):
             m.topology.create_connectivity(fdim, fdim + 1)
-            f = dmesh.locate_entities_boundary(m, fdim, lambda x: np.abs(x[2]) <= cy + tol)
+            f = dmesh.locate_entities_boundary(m, fdim, lambda x: np.where(
+                x[2] > 0.0, x[2] <= radius + height + tol, x[2] >= -R2 - height - tol))
             f2c = m.topology.connectivity(fdim, fdim + 1)
             mid = dmesh.compute_midpoints(m, fdim + 1, f2c.array[f2c.offsets[f]])[:, 2] if len(f) else np.zeros(0)
             return f[(mid > 0) == upper]
@@ -67,12 +101,12 @@ def build(comm, level, radius, height, E, nu, rho, v):
         msh, fdim, slave, np.ones(len(slave), dtype=np.int32)))(1)
     zero = fem.Constant(msh, PETSc.ScalarType((0.0, 0.0, 0.0)))
     return Problem(
-        name="two_balls", mesh=msh, shape=(3,), rho=rho,
+        name="two_balls", mesh=msh, shape=(3,), rho=density,
         a=lambda u, w: ufl.inner(ball.sigma(u, lmbda, mu), ufl.sym(ufl.grad(w))) * ufl.dx,
         stress=lambda u: ball.sigma(u, lmbda, mu),
         l=lambda w: ufl.inner(zero, w) * ufl.dx,
         u0=lambda x: np.zeros((3, x.shape[1])),
-        v0=lambda x: np.vstack([0.0 * x[0], 0.0 * x[0], np.where(x[2] > 0.0, -v, v)]),
+        v0=lambda x: np.vstack([0.0 * x[0], 0.0 * x[0], np.where(x[2] > 0.0, -v, v2)]),
         constraint_vertices=None, lower_bound=None,
         contact_pairs=[ContactPair(slave=half(True), master=half(False), name="balls")],
         constraint_component=2,
@@ -81,22 +115,31 @@ def build(comm, level, radius, height, E, nu, rho, v):
         extra_columns=("contact_force", "momentum_y", "elastic"),
         momentum_component=2,
         parameters={"level": level, "radius": radius, "height": height, "E": E, "nu": nu, "rho": rho, "v": v,
-                    "lame_lambda": lmbda, "lame_mu": mu, "mass": 2.0 * rho * 4.0 / 3.0 * np.pi * radius ** 3,
+                    "R2": R2, "E2": E2, "nu2": nu2, "rho2": rho2, "v2": v2,
+                    "mass1": rho * 4.0 / 3.0 * np.pi * radius ** 3, "mass2": rho2 * 4.0 / 3.0 * np.pi * R2 ** 3,
                     "hertz": ref},
-        units={"radius": "mm", "height": "mm", "E": "N/mm^2", "rho": "t/mm^3", "v": "mm/s", "t": "s",
-               "u_probe": "mm", "lambda_probe": "N/mm^2 (>= 0 compressive)", "contact_force": "N",
-               "momentum_y": "N s (along z)"},
+        units={"radius": "mm", "height": "mm", "E": "N/mm^2", "rho": "t/mm^3", "v": "mm/s", "R2": "mm",
+               "E2": "N/mm^2", "rho2": "t/mm^3", "v2": "mm/s", "t": "s", "u_probe": "mm",
+               "lambda_probe": "N/mm^2 (>= 0 compressive)", "contact_force": "N", "momentum_y": "N s (along z)"},
     )
 
 
 PARAMS = (
     Param("level", 1, "the built-in ball's mesh level (1-5)", type=int, choices=tuple(sorted(ball_mesh.LEVELS))),
-    Param("radius", 20.0, "radius of each ball", unit="mm", low=0.0, low_strict=True),
+    Param("radius", 20.0, "radius of ball 1", unit="mm", low=0.0, low_strict=True),
     Param("height", 0.01, "distance of each ball's nearest point to the plane z = 0", unit="mm", low=0.0),
-    Param("E", 10.0, "Young's modulus", unit="N/mm^2", low=0.0, low_strict=True),
-    Param("nu", 0.3, "Poisson's ratio", low=0.0, high=0.49),
-    Param("rho", 1e-9, "density", unit="t/mm^3", low=0.0, low_strict=True),
-    Param("v", 100.0, "speed of each ball toward the other", unit="mm/s", low=0.0, low_strict=True),
+    Param("E", 10.0, "Young's modulus of ball 1", unit="N/mm^2", low=0.0, low_strict=True),
+    Param("nu", 0.3, "Poisson's ratio of ball 1", low=0.0, high=0.49),
+    Param("rho", 1e-9, "density of ball 1", unit="t/mm^3", low=0.0, low_strict=True),
+    Param("v", 100.0, "speed of ball 1 toward ball 2", unit="mm/s", low=0.0, low_strict=True),
+    Param("R2", None, "radius of ball 2 (default: ball 1's, its mirror image)", unit="mm", type=float, low=0.0,
+          low_strict=True),
+    Param("E2", None, "Young's modulus of ball 2 (default: ball 1's)", unit="N/mm^2", type=float, low=0.0,
+          low_strict=True),
+    Param("nu2", None, "Poisson's ratio of ball 2 (default: ball 1's)", type=float, low=0.0, high=0.49),
+    Param("rho2", None, "density of ball 2 (default: ball 1's)", unit="t/mm^3", type=float, low=0.0,
+          low_strict=True),
+    Param("v2", None, "speed of ball 2 toward ball 1 (default: ball 1's v)", unit="mm/s", type=float, low=0.0),
 )
 
 PROBLEM = ProblemSpec(

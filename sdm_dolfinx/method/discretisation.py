@@ -20,6 +20,7 @@ from sdm_dolfinx.method import dirichlet as _parts, equilibrium, masses, problem
 from sdm_dolfinx.method.body_rows import BodyRows
 from sdm_dolfinx.method.obstacle_rows import ObstacleRows
 from sdm_dolfinx.method.weighted_rows import WeightedRows
+from sdm_dolfinx.problems import density
 from sdm_dolfinx.method.pairs import MASS_TREATMENTS, get_pair
 
 #: an initial displacement below the bound by more than this times max(1, max |bound|) at a
@@ -110,7 +111,7 @@ class Discretisation:
     def _assemble(self, quadrature_degree):
         p = self.problem
         u, w = ufl.TrialFunction(self.W), ufl.TestFunction(self.W)
-        rho = fem.Constant(p.mesh, PETSc.ScalarType(p.rho))
+        rho = density.form(p)
         self._a_ufl, self._l_ufl = p.a(u, w), p.l(w)
         if self.pair.standard:                  # the consistent mass (modified after the constraints)
             mass = {"M": rho * ufl.inner(u, w) * ufl.dx}

@@ -13,6 +13,8 @@ from mpi4py import MPI
 
 import numpy as np
 
+from sdm_dolfinx.problems.density import is_field
+
 
 def _form_data(form, where, hint):
     """(label, current value) getters of the Constants and Functions of a UFL form."""
@@ -49,6 +51,9 @@ class FrozenData:
             items.append(("the bound lower_bound(x) at the constrained vertices",
                           lambda: np.asarray(problem.lower_bound(cx), dtype=float).copy(),
                           "a bound that moves must say so: Problem(moving_bound=True), lower_bound(x, t)", False))
+        if is_field(problem.rho):
+            items.append(("the density rho (a Function)", lambda: np.array(problem.rho.x.array, copy=True),
+                          "the mass is assembled once: a density that changes during a run is not supported", False))
         if xd is not None:
             items.append(("dirichlet_value(x) on the Dirichlet boundary",
                           lambda: np.asarray(problem.dirichlet_value(xd), dtype=float).copy(),

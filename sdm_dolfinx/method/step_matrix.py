@@ -12,6 +12,7 @@ import ufl
 from dolfinx import fem
 
 from sdm_dolfinx import compat
+from sdm_dolfinx.problems import density
 
 #: the masses whose sparsity pattern contains A's (M = B^T C^-1 B and the consistent mass of
 #: W^h): K = c_M M + c_A A is added in place into M's pattern; the others (a lumped or
@@ -35,7 +36,7 @@ def block_matrix(d, alpha):
     p, W, H = d.problem, d.W, d.H
     u, w = ufl.TrialFunction(W), ufl.TestFunction(W)
     v, q = ufl.TrialFunction(H), ufl.TestFunction(H)
-    rho = fem.Constant(p.mesh, PETSc.ScalarType(p.rho))
+    rho = density.form(p)
     al = fem.Constant(p.mesh, PETSc.ScalarType(alpha))
     forms = [[d.form(p.a(u, w)), d.form(al * rho * ufl.inner(v, w) * ufl.dx)],       # the degree of A, B, C
              [d.form(al * rho * ufl.inner(u, q) * ufl.dx), d.form(-rho * ufl.inner(v, q) * ufl.dx)]]

@@ -21,6 +21,7 @@ from sdm_dolfinx.method.discretisation import Discretisation
 from sdm_dolfinx.mpiutil import atomic_write_text
 from sdm_dolfinx.io import StateReader, read_info, read_timeseries
 from sdm_dolfinx.post.rebuild_run import rebuild_problem
+from sdm_dolfinx.problems import density
 
 #: the columns of energy_recomputed.csv
 ENERGY_COLUMNS = ("step", "t", "energy", "kinetic", "potential")
@@ -64,7 +65,7 @@ def _energies(problem, disc, Vs, reader, comm):
     w = ufl.TestFunction(disc.W)
     # potential: 1/2 a(u, u) - l(u), the run's own UFL forms with u the stored field
     pot_form = disc.form(0.5 * problem.a(u, u) - ufl.action(problem.l(w), u))
-    rho = fem.Constant(problem.mesh, float(problem.rho))
+    rho = density.form(problem)
     kin_form = disc.form(0.5 * rho * ufl.inner(v, v) * ufl.dx) if Vs is not disc.W else None
     Mv = disc.M.createVecLeft() if kin_form is None else None
     cols = {c: np.zeros(len(reader)) for c in ENERGY_COLUMNS}

@@ -32,6 +32,7 @@ from sdm_dolfinx.problems.dirichlet import DirichletPart as DirichletPart
 from sdm_dolfinx.problems.dirichlet import MeshEntities as MeshEntities
 from sdm_dolfinx.problems.dirichlet import validate_parts
 from sdm_dolfinx.problems import constraint_checks as _checks
+from sdm_dolfinx.problems import density as _density
 from sdm_dolfinx.problems.contact_pairs import ContactPair as ContactPair
 from sdm_dolfinx.problems.errors import ProblemInputError as ProblemInputError
 from sdm_dolfinx.problems.mesh_checks import degenerate_cells
@@ -64,7 +65,8 @@ class Problem:
         shape: value shape of u: ``()`` for a scalar field, ``(gdim,)`` for a vector field.
         a: ``a(u, w)`` -> UFL bilinear form (the operator A).
         l: ``l(w)`` -> UFL linear form (the load L, gravity included).
-        rho: density: the mass forms are ``rho * u.w dx``.
+        rho: density: the mass forms are ``rho * u.w dx``; a number, or a dolfinx Function on the mesh (a
+            DG0 density per cell: bodies of different densities in one mesh; :mod:`.density`).
         u0: initial displacement: a callable ``x -> values`` or a ``fem.Function`` on the mesh (any
             element: interpolated into W^h), as ``Function.interpolate`` takes them; or
             :data:`EQUILIBRIUM` (``"equilibrium"``): the static solution of the run's own
@@ -147,7 +149,7 @@ class Problem:
     constraint_vertices: Optional[MeshEntities]
     lower_bound: Optional[PointFunction]
     constraint_measure: Callable[[UFL], UFL]
-    rho: float = 1.0
+    rho: Any = 1.0
     constraint_component: Optional[int] = None
     dirichlet_facets: Optional[MeshEntities] = None
     dirichlet_value: Optional[PointFunction] = None
@@ -211,11 +213,7 @@ class Problem:
         if not isinstance(self.moving_bound, (bool, np.bool_)):
             raise ProblemInputError(f"problem {self.name!r}: moving_bound must be True (lower_bound takes (x, t)) or "
                                     f"False (lower_bound takes x) (got {self.moving_bound!r})")
-        rho = self.rho
-        if isinstance(rho, bool) or not isinstance(rho, (int, float, np.integer, np.floating)) \
-                or not (np.isfinite(rho) and rho > 0):
-            raise ProblemInputError(f"problem {self.name!r}: rho must be a finite number > 0, the density of the mass "
-                                    f"forms rho u.w dx (got {rho!r})")
+        _density.validate(self)
         degenerate = degenerate_cells(self.mesh) if hasattr(self.mesh, "geometry") else None
         if degenerate:
             raise ProblemInputError(f"problem {self.name!r}: {degenerate}")

@@ -32,6 +32,15 @@ so the plane motion is d'Alembert's 1-D one; the derivation is in the problem fi
   energy within 0.24 %; 1 % asserted, a third of the single ball's own distance to Hertz at this level
   (F_max 3.070 N: 2.9 %).
 
+* Unequal balls (ball 2: R2 = 10 mm, E2 = 40 N/mm^2, rho2 = 3000 kg/m^3, at rest; DG0 materials and
+  density): Hertz with the reduced radius, modulus and mass (demos/two_balls_problem.py, hertz_two):
+  F_max = 1.064 N, the impulse 2 m* v (a full elastic rebound of the relative motion). Measured at level 1
+  (dt = 3e-5 s): F_max -3.2 % (5 % asserted, the issue's; the single ball on its plane: -2.9 % at this
+  level), impulse +0.07 % (1 %), the total momentum constant to 10 digits at every step (the contact
+  forces are equal and opposite on unequal bodies too: 1e-12 asserted), energy within 0.05 % (0.5 %).
+  The contact time, +8.3 % (the single ball: +7.8 % at this level, counted in steps of the force), is not
+  asserted here.
+
 Each test runs on any number of ranks (the CI runs 1 and 2; 3 ranks agree to 1.4e-10 in the contact force,
 measured), and the serial comparison of head-on runs holds on each.
 """
@@ -150,3 +159,19 @@ def test_two_balls_head_on_are_one_ball_on_its_plane():
     assert np.max(np.abs(e / e[0] - 1.0)) <= 0.01
     mass = 2.0 * 1e-9 * 4.0 / 3.0 * np.pi * 20.0 ** 3
     assert np.max(np.abs(two["momentum_y"])) <= 1e-12 * mass * 100.0                   # +v and -v: zero
+
+
+@pytest.mark.mpi
+def test_unequal_balls_meet_hertz_and_keep_their_momentum():
+    dt, v = 3e-5, 100.0
+    p = load_file(DEMOS / "two_balls_problem.py").problem(COMM, level=1, R2=10.0, E2=40.0, rho2=3e-9, v2=0.0)
+    ref = p.parameters["hertz"]
+    ts = simulate(p, pair="P2/P1", dt=dt, T=6e-3).timeseries
+    f, P = ts["contact_force"], ts["momentum_y"]
+    assert np.max(np.abs(P - P[0])) <= 1e-12 * abs(P[0])
+    assert P[0] == pytest.approx(-p.parameters["mass1"] * v, rel=1e-3)            # the mesh's mass: 6.8e-4 off
+    assert f.max() == pytest.approx(ref["F_max"], rel=0.05)
+    assert np.sum(f) * dt == pytest.approx(2.0 * ref["mass"] * v, rel=0.01)
+    assert f[-20:].max() == 0.0                                                     # apart at the end
+    e = ts["energy"]
+    assert np.max(np.abs(e / e[0] - 1.0)) <= 5e-3
