@@ -21,6 +21,9 @@ rho c v / 2 (half the stress of a bar striking a rigid wall, rho c v). Head on (
 behaves as one bar striking a rigid wall at the plane of symmetry x = 0 (demos/bar_problem.py with
 the same d), at the stress rho c v.
 
+The time series has each bar's columns (``bodies``): ``momentum_striker_x``, ``kinetic_striker``,
+``elastic_striker`` and the struck bar's, and the pair's ``contact_force_ends``.
+
 Units: mm, N, s, tonne; defaults: steel bars, L = 100 mm, H = 10 mm, E = 200 GPa,
 rho = 7850 kg/m^3, v = 1 m/s (c = 5048 m/s, 2L/c = 39.6 us, rho c v / 2 = 19.8 MPa).
 """
@@ -33,7 +36,7 @@ from dolfinx import fem, mesh as dmesh
 
 from sdm_dolfinx import compat
 from sdm_dolfinx.compat.mesh import create_mesh, mesh_geometry_dofmap
-from sdm_dolfinx.problems import ContactPair, Param, Problem, ProblemSpec
+from sdm_dolfinx.problems import Body, ContactPair, Param, Problem, ProblemSpec
 
 
 def _rectangle(d, L, H, Nx, Ny):
@@ -78,6 +81,14 @@ def build(comm, L, H, E, rho, v, v2, Nx, Ny, Ny1, gap_time):
             return f[side * mid > 0]
         return found
 
+    def side_cells(side):
+        """The cells of the bar on the ``side`` (-1, +1) of x = 0."""
+        def found(m):
+            n = m.topology.index_map(2).size_local + m.topology.index_map(2).num_ghosts
+            cells = np.arange(n, dtype=np.int32)
+            return cells[side * dmesh.compute_midpoints(m, 2, cells)[:, 0] > 0]
+        return found
+
     slave = np.sort(facets(-d, -1)(msh)).astype(np.int32)
     tags = dmesh.meshtags(msh, fdim, slave, np.full(len(slave), 1, dtype=np.int32))
     ds_slave = ufl.Measure("ds", domain=msh, subdomain_data=tags)(1)
@@ -98,7 +109,8 @@ def build(comm, L, H, E, rho, v, v2, Nx, Ny, Ny1, gap_time):
         constraint_component=0,
         constraint_measure=lambda q: q * ds_slave,
         probe=(-d, H / 2.0),                                       # the middle of the striker's end face
-        extra_columns=("contact_force", "momentum_x"),
+        extra_columns=("contact_force", "momentum_x", "elastic"),
+        bodies=[Body("striker", side_cells(-1)), Body("struck", side_cells(1))],
         momentum_component=0,
         parameters={"L": L, "H": H, "E": E, "nu": 0.0, "rho": rho, "v": v, "v2": v2, "gap": 2.0 * d,
                     "gap_time": t0, "Nx": Nx, "Ny": Ny, "Ny1": Ny if Ny1 is None else Ny1, "c": c},

@@ -24,7 +24,7 @@ logging.captureWarnings(False)
 
 from sdm_dolfinx.errors import SdmError, StepError  # noqa: E402
 from sdm_dolfinx.params import OptionError, Param  # noqa: E402
-from sdm_dolfinx.problems import ContactPair, DirichletPart, Problem, ProblemInputError, ProblemSpec  # noqa: E402
+from sdm_dolfinx.problems import Body, ContactPair, DirichletPart, Problem, ProblemInputError, ProblemSpec  # noqa: E402
 from sdm_dolfinx.problems import ball, bar, block, disc, membrane, rod1d  # noqa: E402
 from sdm_dolfinx.problems import register as register_problem  # noqa: E402
 from sdm_dolfinx.method.errors import DiscretisationError  # noqa: E402
@@ -37,7 +37,7 @@ from sdm_dolfinx.solvers import register as register_step_solver  # noqa: E402
 from sdm_dolfinx.io import CheckpointError, RunFolderError  # noqa: E402
 from sdm_dolfinx.run import Interrupted, Result, RunInputError, SolverSetupError, plan, simulate  # noqa: E402
 
-__all__ = ["simulate", "plan", "Result", "Problem", "DirichletPart", "ContactPair", "ProblemSpec", "Param", "Pair", "Scheme",
+__all__ = ["simulate", "plan", "Result", "Problem", "DirichletPart", "ContactPair", "Body", "ProblemSpec", "Param", "Pair", "Scheme",
            "register_problem", "register_pair", "register_scheme", "register_contact", "register_step_solver",
            "SdmError", "StepError", "RunInputError", "ProblemInputError", "OptionError", "DiscretisationError",
            "Interrupted", "SolverSetupError", "CheckpointError", "RunFolderError",

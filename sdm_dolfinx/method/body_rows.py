@@ -142,6 +142,8 @@ class BodyRows:
         self.carried = np.zeros((len(self.dofs), self.gdim))
         self.free = np.ones(self.dofs.shape, dtype=bool)
         self._kept: dict[Any, Any] = {}
+        #: which pair held each row in the last :meth:`rows` (-1: none)
+        self.pair_of_row = np.full(len(self.dofs), -1, dtype=np.int64)
 
     # ---------------------------------------------------------------- projections
     def _closest(self, u: Array, x: Array, dofs: Array, member: Any, key: Any = None) -> tuple[Array, list[Any]]:
@@ -212,7 +214,9 @@ class BodyRows:
         ids, vals = np.full((m, width), -1, dtype=np.int64), np.zeros((m, width))
         ids[:, :g] = self.dofs + self._lo
         rhs = np.zeros(m)
+        self.pair_of_row[:] = -1
         for k, (sel, n, el, xi, mvals) in enumerate(per_pair):
+            self.pair_of_row[sel] = k
             s, free = self.surfaces[k], self._free[k]
             at = s.at[el]                                                   # (p, nv, gdim) positions in s.dofs
             coef = -xi[:, :, None] * n[:, None, :g] * free[at]              # the master vertices' entries

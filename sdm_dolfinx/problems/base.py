@@ -34,6 +34,8 @@ from sdm_dolfinx.problems.dirichlet import validate_parts
 from sdm_dolfinx.problems import constraint_checks as _checks
 from sdm_dolfinx.problems import density as _density
 from sdm_dolfinx.problems.contact_pairs import ContactPair as ContactPair
+from sdm_dolfinx.problems import bodies as _bodies
+from sdm_dolfinx.problems.bodies import Body as Body
 from sdm_dolfinx.problems.errors import ProblemInputError as ProblemInputError
 from sdm_dolfinx.problems.mesh_checks import degenerate_cells
 
@@ -97,6 +99,8 @@ class Problem:
             facets' vertices stay outside the master facets' body; :mod:`.contact_pairs`), instead
             of ``constraint_vertices``, ``lower_bound`` and ``obstacles``. Frictionless, midpoint
             and backward Euler schemes, the exact contact (the rest refuse it in one line).
+        bodies: the bodies of a mesh of several (:class:`Body`: a name and its cells), for the
+            per-body columns: momentum, kinetic and elastic energy of each (:mod:`.bodies`).
         constraint_component: component of u that is bounded, and that ``u_probe`` records:
             required for a vector u (an int in 0..gdim-1; the Problem refuses None), None (or 0)
             for a scalar u.
@@ -167,6 +171,7 @@ class Problem:
     moving_bound: bool = False
     obstacles: Sequence[Any] = ()
     contact_pairs: Sequence[ContactPair] = ()
+    bodies: Sequence[Body] = ()
 
     def __post_init__(self) -> None:
         self.validate()
@@ -210,6 +215,7 @@ class Problem:
         validate_parts(self.name, self.dirichlet_parts, shape)
         _checks.validate_obstacles(self)
         _checks.validate_pairs(self)
+        _bodies.validate(self)
         if not isinstance(self.moving_bound, (bool, np.bool_)):
             raise ProblemInputError(f"problem {self.name!r}: moving_bound must be True (lower_bound takes (x, t)) or "
                                     f"False (lower_bound takes x) (got {self.moving_bound!r})")

@@ -13,6 +13,7 @@ import numpy.typing as npt
 from sdm_dolfinx.contact import friction as _friction
 from sdm_dolfinx.errors import StepError
 from sdm_dolfinx.method import gaps, moving_bound
+from sdm_dolfinx.run import body_columns
 from sdm_dolfinx.run.boundary_sink import BOUNDARY_GAP, BoundarySink
 # public here too (tests and users import them from this module)
 from sdm_dolfinx.run.boundary_sink import BOUNDARY_GAP_FLOOR as BOUNDARY_GAP_FLOOR  # noqa: F401
@@ -148,8 +149,11 @@ class TimeSeries:
         obstacle: tuple[str, ...] = OBSTACLE_COLUMNS if moving_bound.moves(d) else ()
         if d.obstacle_rows is not None and d.obstacle_rows.moves:      # moving obstacles: their work only
             obstacle = OBSTACLE_COLUMNS[:1]
+        per_body = body_columns.columns(problem)
         self.columns: tuple[str, ...] = (BASE_COLUMNS + contact + tuple(problem.extra_columns) + friction_cols
-                                         + boundary + dirichlet + obstacle)
+                                         + boundary + dirichlet + obstacle + per_body)
+        #: the per-body and per-pair columns (:mod:`.body_columns`), or None
+        self.body_columns = body_columns.BodyColumns(d) if per_body else None
         self.data = {c: np.zeros(nsteps + 1) for c in self.columns}
         self.comm = problem.mesh.comm
         #: the deepest sink of the constrained boundary (:mod:`.boundary_sink`), or None without one
@@ -198,6 +202,8 @@ class TimeSeries:
             self.boundary_sink.track(n, t, U, row[BOUNDARY_GAP])
         if self.linear_range is not None:
             self.linear_range.watch(n, t, U)
+        if self.body_columns is not None:
+            row.update(self.body_columns.values(U, V, lam if step is not None else np.zeros(0)))
         row["linear_its_total"] = linear_its_total
         if not np.isfinite(row["energy"]):
             raise StepError(f"step {n} (t = {t:.6g}): the energy is not finite ({row['energy']})")

@@ -112,6 +112,15 @@ def test_a_bar_striking_a_bar_at_rest_stops_and_sends_it_off():
     assert np.median(middle) == pytest.approx(rho * c * v / 2.0, rel=0.01)
     v1, v2 = _mean_velocities(r)
     assert abs(v1) <= 0.01 * v and v2 == pytest.approx(v, rel=0.01)
+    # the per-body columns (Problem.bodies): the striker hands its momentum on; they add up to the run's
+    assert abs(ts["momentum_striker_x"][-1]) <= 0.01 * momentum
+    assert ts["momentum_struck_x"][-1] == pytest.approx(momentum, rel=0.01)
+    e0 = ts["energy"][0]
+    for what, total in (("momentum_{}_x", "momentum_x"), ("kinetic_{}", "kinetic"), ("elastic_{}", "elastic")):
+        both = ts[what.format("striker")] + ts[what.format("struck")]
+        scale = momentum if total == "momentum_x" else e0
+        assert np.max(np.abs(both - ts[total])) <= 1e-12 * scale
+    np.testing.assert_array_equal(ts["contact_force_ends"], force)
     # separated: no energy is lost or gained beyond the midpoint scheme's impact and release (0.018 %)
     assert ts["energy"][-1] == pytest.approx(ts["energy"][0], rel=1e-3)
     # the rows hold the midpoint U^{n+1/2} (the scheme's constrained iterate) to round-off; U^{n+1} may

@@ -12,7 +12,7 @@ from dolfinx import mesh as dmesh
 from sdm_dolfinx.method.discretisation import Discretisation
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.method.master_surface import barycentric, facet_normals
-from sdm_dolfinx.problems import ContactPair, ProblemInputError, load_file
+from sdm_dolfinx.problems import Body, ContactPair, ProblemInputError, load_file
 from sdm_dolfinx.run import simulate
 
 COMM = MPI.COMM_WORLD
@@ -195,3 +195,25 @@ def test_bodies_touching_in_the_reference_mesh_cannot_restart(mpi_tmp_path):
         simulate(_bars(gap_time=0.0), out=mpi_tmp_path / "r", restart=True, **{**kw, "T": 1e-5})
     assert isinstance(e.value, CheckpointError) or "cannot be restarted" in str(e.value)
     assert "share" in _one_line(e) and "cannot be restarted" in _one_line(e)
+
+
+@pytest.mark.parametrize("bodies, words", [
+    ("striker", "bodies must be a list of Body"),
+    (["striker"], "bodies must hold Body objects, not str"),
+    ([Body("a b", lambda m: np.zeros(0, dtype=np.int32))], "distinct words"),
+])
+def test_bad_bodies_are_refused(bodies, words):
+    p = _bars()
+    p.bodies = bodies
+    with pytest.raises(ProblemInputError) as e:
+        p.validate()
+    assert words in _one_line(e)
+
+
+def test_bodies_that_share_dofs_are_refused(mpi_tmp_path):
+    p = _bars()
+    every = lambda m: np.arange(m.topology.index_map(2).size_local, dtype=np.int32)      # noqa: E731
+    p.bodies = [Body("one", every), Body("two", every)]
+    with pytest.raises(DiscretisationError) as e:
+        simulate(p, pair="P2/P1", dt=5e-7, T=1e-6, out=mpi_tmp_path / "r")
+    assert "share" in _one_line(e)
