@@ -18,6 +18,9 @@ approach twice as much as the single ball on a rigid plane at v, with the same f
 time: F_max = 3.161 N and t_c = 3.896 ms at the defaults; by symmetry each ball is then the
 built-in ball on its plane (``python -m sdm_dolfinx ball --height d``), whose mesh is ball 1's.
 
+The time series has each ball's momentum, kinetic and elastic energy (``momentum_ball1_z``, ...,
+``kinetic_ball2``, ``elastic_ball2``) and the pair's ``contact_force_balls``.
+
 Units: mm, N, s, tonne (stresses in MPa, energies in mJ, momenta in N s).
 """
 from mpi4py import MPI
@@ -29,7 +32,7 @@ from dolfinx import fem, mesh as dmesh
 
 from sdm_dolfinx import compat
 from sdm_dolfinx.compat.mesh import create_mesh, mesh_geometry_dofmap
-from sdm_dolfinx.problems import ContactPair, Param, Problem, ProblemSpec
+from sdm_dolfinx.problems import Body, ContactPair, Param, Problem, ProblemSpec
 from sdm_dolfinx.problems import ball, ball_mesh
 
 
@@ -96,6 +99,12 @@ def build(comm, level, radius, height, E, nu, rho, v, R2, E2, nu2, rho2, v2):
             return f[(mid > 0) == upper]
         return found
 
+    def side_cells(upper):
+        def found(m):
+            cells = np.arange(m.topology.index_map(3).size_local + m.topology.index_map(3).num_ghosts, dtype=np.int32)
+            return cells[(dmesh.compute_midpoints(m, 3, cells)[:, 2] > 0.0) == upper]
+        return found
+
     slave = np.sort(half(True)(msh)).astype(np.int32)
     ds_c = ufl.Measure("ds", domain=msh, subdomain_data=dmesh.meshtags(
         msh, fdim, slave, np.ones(len(slave), dtype=np.int32)))(1)
@@ -109,6 +118,7 @@ def build(comm, level, radius, height, E, nu, rho, v, R2, E2, nu2, rho2, v2):
         v0=lambda x: np.vstack([0.0 * x[0], 0.0 * x[0], np.where(x[2] > 0.0, -v, v2)]),
         constraint_vertices=None, lower_bound=None,
         contact_pairs=[ContactPair(slave=half(True), master=half(False), name="balls")],
+        bodies=[Body("ball1", side_cells(True)), Body("ball2", side_cells(False))],
         constraint_component=2,
         constraint_measure=lambda q: q * ds_c,
         probe=(0.0, 0.0, height),                                 # ball 1's south pole
