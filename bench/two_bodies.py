@@ -1,0 +1,123 @@
+"""The cost of contact between two deformable bodies: the share of the contact search and the rows.
+
+The issue's target: the contact search and the two-body constraint assembly at most 10 % of a step at
+the size of ball level 4. Each case runs two equal balls head on (demos/two_balls_problem.py, P2/P1,
+midpoint, ``linear="schur"``) from 4 um apart each (contact from the first steps), 6 steps, in a fresh
+process, the median of 3 runs; per case: the mean time of a step with active contact (the Integrator's
+``step``: the set-up excluded, the steps that compute the columns of newly active rows included), the
+time of the rows (:meth:`BodyRows.rows`: the master surface's displacements gathered, every slave vertex
+projected, the rows assembled) and of the end-of-step gap (a second projection), and their share of the
+steps.
+
+    .venv/bin/python bench/two_bodies.py                        # levels 1-3, 1 rank; results/two_bodies.json
+    .venv/bin/python bench/two_bodies.py --ranks 2 --level 3
+    .venv/bin/python bench/two_bodies.py --table
+"""
+import argparse
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+RESULTS = HERE / "results" / "two_bodies.json"
+LEVELS = (1, 2, 3)
+STEPS, DT, HEIGHT = 6, 4e-5, 0.004
+REPEATS = 3
+
+
+def one(level):
+    """Run one case in this process; returns its record."""
+    from mpi4py import MPI
+    import numpy as np
+    from sdm_dolfinx.method import body_rows
+    from sdm_dolfinx.method.discretisation import Discretisation
+    from sdm_dolfinx.problems import load_file
+    from sdm_dolfinx.run.integrator import Integrator
+
+    comm = MPI.COMM_WORLD
+    t0 = time.perf_counter()
+    p = load_file(HERE.parent / "demos" / "two_balls_problem.py").problem(comm, level=level, height=HEIGHT)
+    spent = {"rows": 0.0, "gap": 0.0}
+
+    def timed(name, f):
+        def wrapper(self, *a, **k):
+            s = time.perf_counter()
+            out = f(self, *a, **k)
+            spent[name] += time.perf_counter() - s
+            return out
+        return wrapper
+    body_rows.BodyRows.rows = timed("rows", body_rows.BodyRows.rows)
+    body_rows.BodyRows.after_step = timed("gap", body_rows.BodyRows.after_step)
+    d = Discretisation(p, "P2/P1")
+    integ = Integrator(d, "midpoint", DT, linear="schur")
+    U, V = d.initial_state()
+    V = integ.initial_velocity(V)
+    setup = time.perf_counter() - t0
+    times, actives = [], []
+    for n in range(STEPS):
+        comm.Barrier()
+        s = time.perf_counter()
+        info = integ.step(U, V, n, n * DT)
+        comm.Barrier()
+        times.append(time.perf_counter() - s)
+        actives.append(int(info["n_active"]))
+    contact = [t for t, a in zip(times, actives) if a > 0]
+    integ.destroy()
+    return {"level": level, "ranks": comm.size, "dim_W": d.dims()["dim_W"], "slave_vertices": d.num_constraints,
+            "master_facets": len(d.body_rows.surfaces[0].cells), "setup_s": setup, "step_s": times,
+            "n_active": actives, "contact_step_s": float(np.mean(contact)) if contact else None,
+            "rows_s": spent["rows"], "gap_s": spent["gap"]}
+
+
+def run_fresh(level, ranks):
+    """One record from a fresh process (the median time of REPEATS runs)."""
+    records = []
+    for _ in range(REPEATS):
+        cmd = [sys.executable, __file__, "--one", str(level)]
+        if ranks > 1:
+            cmd = ["mpirun", "-n", str(ranks), *cmd]
+        out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
+        records.append(json.loads(out.strip().splitlines()[-1]))
+    records.sort(key=lambda r: r["contact_step_s"] or 0.0)
+    rec = records[len(records) // 2]
+    rec["repeats"] = [r["contact_step_s"] for r in records]
+    return rec
+
+
+def table(results):
+    lines = ["| level | ranks | dim W^h | slave vertices | master facets | active (last step) | contact step (s) | "
+             "rows (s/step) | end gap (s/step) | search and rows / step | set-up (s) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in sorted(results, key=lambda r: (r["level"], r["ranks"])):
+        steps = sum(r["step_s"])
+        lines.append(f"| {r['level']} | {r['ranks']} | {r['dim_W']} | {r['slave_vertices']} | {r['master_facets']} | "
+                     f"{r['n_active'][-1]} | {r['contact_step_s']:.4f} | {r['rows_s'] / STEPS:.4f} | "
+                     f"{r['gap_s'] / STEPS:.4f} | {(r['rows_s'] + r['gap_s']) / steps:.1%} | {r['setup_s']:.1f} |")
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--level", type=int, action="append", choices=(1, 2, 3, 4))
+    ap.add_argument("--ranks", type=int, default=1)
+    ap.add_argument("--table", action="store_true", help="print the table of the recorded results")
+    ap.add_argument("--one", type=int, help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.one:
+        rec = one(args.one)
+        from mpi4py import MPI
+        if MPI.COMM_WORLD.rank == 0:
+            print(json.dumps(rec))
+        sys.exit(0)
+    results = json.loads(RESULTS.read_text()) if RESULTS.exists() else []
+    if not args.table:
+        for level in args.level or LEVELS:
+            rec = run_fresh(level, args.ranks)
+            results = [r for r in results if (r["level"], r["ranks"]) != (level, args.ranks)] + [rec]
+            print(f"level {level} ranks {args.ranks}: contact step {rec['contact_step_s']:.4f} s (repeats "
+                  f"{', '.join(f'{t:.4f}' for t in rec['repeats'])})", flush=True)
+            RESULTS.parent.mkdir(exist_ok=True)
+            RESULTS.write_text(json.dumps(results, indent=1))
+    print(table(results))
