@@ -106,7 +106,7 @@ class BodyRows:
             if own:
                 raise DiscretisationError(f"{label(p)}: contact pair {pair.name!r}: {own} slave vertices are on its "
                                           f"master surface too (a body's own facets, or faces that coincide): the "
-                                          f"slave and master facets must be different bodies'")
+                                          f"slave and master facets must belong to different bodies")
         lost = self.comm.allreduce(int(np.count_nonzero(~self._member.any(axis=0))), op=MPI.SUM)
         if lost:
             raise DiscretisationError(f"{label(p)}: {lost} constrained vertices belong to no contact pair's slave "

@@ -189,8 +189,8 @@ class Problem:
             if comp is None:
                 raise ProblemInputError(
                     f"problem {self.name!r}: a vector problem must name constraint_component, the component "
-                    f"of u bounded at the constrained vertices (and recorded by u_probe), e.g. "
-                    f"constraint_component=1 for u_y")
+                    f"of u bounded at the constrained vertices (and recorded by u_probe; with contact_pairs only "
+                    f"the latter), e.g. constraint_component=1 for u_y")
             if isinstance(comp, bool) or not isinstance(comp, (int, np.integer)) or not 0 <= comp < shape[0]:
                 raise ProblemInputError(f"problem {self.name!r}: constraint_component must be an integer in "
                                         f"0..{shape[0] - 1} for u of shape {shape} (got {comp!r})")
