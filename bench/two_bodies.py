@@ -1,6 +1,6 @@
 """The cost of contact between two deformable bodies: the share of the contact search and the rows.
 
-The issue's target: the contact search and the two-body constraint assembly at most 10 % of a step at
+The target: the contact search and the two-body constraint assembly at most 10 % of a step at
 the size of ball level 4. Each case runs two equal balls head on (demos/two_balls_problem.py, P2/P1,
 midpoint, ``linear="schur"``) from 4 um apart each (contact from the first steps), 6 steps, in a fresh
 process, the median of 3 runs; per case: the mean time of a step with active contact (the Integrator's

@@ -36,8 +36,9 @@ so the plane motion is d'Alembert's 1-D one; the derivation is in the problem fi
   density): Hertz with the reduced radius, modulus and mass (demos/two_balls_problem.py, hertz_two):
   F_max = 1.064 N, the impulse 2 m* v (a full elastic rebound of the relative motion). Measured at level 1
   (dt = 3e-5 s): F_max -3.2 % (5 % asserted, the issue's; the single ball on its plane: -2.9 % at this
-  level), impulse +0.07 % (1 %), the total momentum constant to 10 digits at every step (the contact
-  forces are equal and opposite on unequal bodies too: 1e-12 asserted), energy within 0.05 % (0.5 %).
+  level), impulse +0.07 % (1 %), the total momentum constant at every step (the contact forces are equal
+  and opposite on unequal bodies too) to the solves' round-off: 3.7e-13 (dolfinx 0.5.2) and 4.0e-11 (0.9)
+  relative over the 200 steps, 1e-10 asserted (as for the bars and the cradle), energy within 0.05 % (0.5 %).
   The contact time, +8.3 % (the single ball: +7.8 % at this level, counted in steps of the force), is not
   asserted here.
 
@@ -184,7 +185,7 @@ def test_unequal_balls_meet_hertz_and_keep_their_momentum():
     ref = p.parameters["hertz"]
     ts = simulate(p, pair="P2/P1", dt=dt, T=6e-3).timeseries
     f, P = ts["contact_force"], ts["momentum_y"]
-    assert np.max(np.abs(P - P[0])) <= 1e-12 * abs(P[0])
+    assert np.max(np.abs(P - P[0])) <= 1e-10 * abs(P[0])
     assert P[0] == pytest.approx(-p.parameters["mass1"] * v, rel=1e-3)            # the mesh's mass: 6.8e-4 off
     assert f.max() == pytest.approx(ref["F_max"], rel=0.05)
     assert np.sum(f) * dt == pytest.approx(2.0 * ref["mass"] * v, rel=0.01)
