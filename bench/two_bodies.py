@@ -15,10 +15,11 @@ steps.
 """
 import argparse
 import json
-import subprocess
 import sys
 import time
 from pathlib import Path
+
+from fresh import median_of_fresh_runs
 
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE / "results" / "two_bodies.json"
@@ -73,17 +74,7 @@ def one(level):
 
 def run_fresh(level, ranks):
     """One record from a fresh process (the median time of REPEATS runs)."""
-    records = []
-    for _ in range(REPEATS):
-        cmd = [sys.executable, __file__, "--one", str(level)]
-        if ranks > 1:
-            cmd = ["mpirun", "-n", str(ranks), *cmd]
-        out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
-        records.append(json.loads(out.strip().splitlines()[-1]))
-    records.sort(key=lambda r: r["contact_step_s"] or 0.0)
-    rec = records[len(records) // 2]
-    rec["repeats"] = [r["contact_step_s"] for r in records]
-    return rec
+    return median_of_fresh_runs(__file__, ["--one", level], ranks, REPEATS)
 
 
 def table(results):

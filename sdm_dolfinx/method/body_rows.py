@@ -48,6 +48,7 @@ from dolfinx import fem
 from sdm_dolfinx.method.contact_boundary import vertex_flag
 from sdm_dolfinx.method.dofs import vertex_to_dof
 from sdm_dolfinx.method.errors import DiscretisationError
+from sdm_dolfinx.method.dofs import where_least
 from sdm_dolfinx.method.master_surface import MasterSurface
 from sdm_dolfinx.problems.base import label
 from sdm_dolfinx.problems.contact_pairs import slave_vertices
@@ -84,8 +85,6 @@ class BodyRows:
         surfaces: the pairs' :class:`~.master_surface.MasterSurface`.
         read: the global dofs any row may read (every rank's slave dofs and every master dof; sorted).
     """
-
-    moves = False
 
     def __init__(self, d: Any) -> None:
         p, W = d.problem, d.W
@@ -139,8 +138,6 @@ class BodyRows:
         self.comm.Allreduce(MPI.IN_PLACE, ext, op=MPI.MAX)
         #: the mesh's largest extent along an axis: the scale of the initial state's gap tolerance
         self.size = max(float(np.max(ext[3:] + ext[:3])), 1e-300)
-        self.carried = np.zeros((len(self.dofs), self.gdim))
-        self.free = np.ones(self.dofs.shape, dtype=bool)
         self._kept: dict[Any, Any] = {}
         #: which pair held each row in the last :meth:`rows` (-1: none)
         self.pair_of_row = np.full(len(self.dofs), -1, dtype=np.int64)
@@ -193,16 +190,8 @@ class BodyRows:
 
     def where(self, u: Array, t: float = 0.0) -> Array:
         """The reference coordinates (gdim,) of the slave facets' node nearest to its master surface."""
-        phi = self.phi(u, t, boundary=True)
         bx = np.concatenate([x for _, x in self._bnodes], axis=1) if self._bnodes else np.zeros((3, 0))
-        k = int(np.argmin(phi)) if phi.size else -1
-        _, owner = self.comm.allreduce((float(phi[k]) if k >= 0 else np.inf, self.comm.rank), op=MPI.MINLOC)
-        x = self.comm.bcast(bx[:, k] if self.comm.rank == owner else None, root=owner)
-        return np.asarray(x)[:self.gdim]
-
-    def reference(self) -> tuple[Array, Array]:
-        """Not built for bodies (the static start and the penalty's stiffness use it)."""
-        raise DiscretisationError("contact pairs: no static start or penalty between bodies yet")
+        return where_least(self.comm, self.phi(u, t, boundary=True), bx)[:self.gdim]
 
     # ---------------------------------------------------------------- the step's rows
     def rows(self, u: Array, t0: float, t1: float, weight: float) -> tuple[tuple[Any, Array], Array]:
@@ -232,9 +221,3 @@ class BodyRows:
     def after_step(self, info: dict, u: Array, t1: float, lam: Array) -> None:
         """``info["gap_end"]``: the true signed distance of U^{n+1} = ``u`` (collective)."""
         info["gap_end"] = self.gap(u, t1)
-
-    def work(self, lam: Array) -> float:
-        return 0.0
-
-    def require_free(self, what: str) -> None:
-        raise DiscretisationError(f"{what} between bodies is not built yet")

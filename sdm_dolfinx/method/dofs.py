@@ -1,4 +1,7 @@
-"""Where a space's dofs are: the dof of each mesh vertex, vertex coordinates, the owned size."""
+"""Where a space's dofs are: the dof of each mesh vertex, vertex coordinates, the owned size, the point where
+a distributed minimum is reached."""
+from mpi4py import MPI
+
 import numpy as np
 
 from sdm_dolfinx import compat
@@ -36,3 +39,11 @@ def vertex_coordinates(msh, vertices):
 def owned_size(V):
     """Number of owned entries (dofs times block size) of V's vectors on this rank."""
     return V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+
+
+def where_least(comm, values, x):
+    """The column of ``x`` (3, n) at this rank's least of ``values`` (n,) that is the least over the ranks,
+    on every rank (collective; ties to the lowest rank)."""
+    k = int(np.argmin(values)) if values.size else -1
+    _, owner = comm.allreduce((float(values[k]) if k >= 0 else np.inf, comm.rank), op=MPI.MINLOC)
+    return np.asarray(comm.bcast(x[:, k] if comm.rank == owner else None, root=owner))

@@ -15,6 +15,8 @@ from mpi4py import MPI
 import numpy as np
 import numpy.typing as npt
 
+from sdm_dolfinx.method.dofs import where_least
+
 if TYPE_CHECKING:
     from sdm_dolfinx.method.discretisation import Discretisation
 
@@ -50,10 +52,7 @@ def boundary_gap_where(discretisation: Discretisation, u: npt.NDArray[np.float64
     rows = _rows(d)
     if rows is not None:
         return rows.where(u, t)
-    gap = u[d.bdofs] - d.blb
-    k = int(np.argmin(gap)) if gap.size else -1
-    _, owner = d.comm.allreduce((float(gap[k]) if k >= 0 else np.inf, d.comm.rank), op=MPI.MINLOC)
-    x = d.comm.bcast(d.bx[:, k] if d.comm.rank == owner else None, root=owner)
+    x = where_least(d.comm, u[d.bdofs] - d.blb, d.bx)
     return x[:d.problem.mesh.geometry.dim]
 
 

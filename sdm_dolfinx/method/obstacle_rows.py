@@ -42,6 +42,7 @@ import numpy.typing as npt
 
 from sdm_dolfinx.method.body_rows import refusal as body_refusal
 from sdm_dolfinx.method.errors import DiscretisationError
+from sdm_dolfinx.method.dofs import where_least
 from sdm_dolfinx.problems.base import label
 
 
@@ -181,11 +182,7 @@ class ObstacleRows:
 
     def where(self, u: Array, t: float) -> Array:
         """The reference coordinates (gdim,) of the constrained boundary's node nearest to an obstacle."""
-        phi = self.phi(u, t, boundary=True)
-        k = int(np.argmin(phi)) if phi.size else -1
-        _, owner = self.comm.allreduce((float(phi[k]) if k >= 0 else np.inf, self.comm.rank), op=MPI.MINLOC)
-        x = self.comm.bcast(self.bx[:, k] if self.comm.rank == owner else None, root=owner)
-        return np.asarray(x)[:self.gdim]
+        return where_least(self.comm, self.phi(u, t, boundary=True), self.bx)[:self.gdim]
 
     # ---------------------------------------------------------------- the step's rows
     def rows(self, u: Array, t0: float, t1: float, weight: float) -> tuple[Array, Array]:
