@@ -75,7 +75,7 @@ def _per_ball(msh, upper, lower):
     return f
 
 
-def build(comm, level, radius, height, E, nu, rho, v, R2, E2, nu2, rho2, v2):
+def build(comm, level, radius, height, E, nu, rho, v, R2, E2, nu2, rho2, v2, vt):
     """The two balls for declared values (see PARAMS)."""
     R2, E2, nu2, rho2, v2 = (radius if R2 is None else R2, E if E2 is None else E2, nu if nu2 is None else nu2,
                              rho if rho2 is None else rho2, v if v2 is None else v2)
@@ -115,7 +115,7 @@ def build(comm, level, radius, height, E, nu, rho, v, R2, E2, nu2, rho2, v2):
         stress=lambda u: ball.sigma(u, lmbda, mu),
         l=lambda w: ufl.inner(zero, w) * ufl.dx,
         u0=lambda x: np.zeros((3, x.shape[1])),
-        v0=lambda x: np.vstack([0.0 * x[0], 0.0 * x[0], np.where(x[2] > 0.0, -v, v2)]),
+        v0=lambda x: np.vstack([np.where(x[2] > 0.0, vt, 0.0), 0.0 * x[0], np.where(x[2] > 0.0, -v, v2)]),
         constraint_vertices=None, lower_bound=None,
         contact_pairs=[ContactPair(slave=half(True), master=half(False), name="balls")],
         bodies=[Body("ball1", side_cells(True)), Body("ball2", side_cells(False))],
@@ -125,11 +125,11 @@ def build(comm, level, radius, height, E, nu, rho, v, R2, E2, nu2, rho2, v2):
         extra_columns=("contact_force", "momentum_y", "elastic"),
         momentum_component=2,
         parameters={"level": level, "radius": radius, "height": height, "E": E, "nu": nu, "rho": rho, "v": v,
-                    "R2": R2, "E2": E2, "nu2": nu2, "rho2": rho2, "v2": v2,
+                    "R2": R2, "E2": E2, "nu2": nu2, "rho2": rho2, "v2": v2, "vt": vt,
                     "mass1": rho * 4.0 / 3.0 * np.pi * radius ** 3, "mass2": rho2 * 4.0 / 3.0 * np.pi * R2 ** 3,
                     "hertz": ref},
         units={"radius": "mm", "height": "mm", "E": "N/mm^2", "rho": "t/mm^3", "v": "mm/s", "R2": "mm",
-               "E2": "N/mm^2", "rho2": "t/mm^3", "v2": "mm/s", "t": "s", "u_probe": "mm",
+               "E2": "N/mm^2", "rho2": "t/mm^3", "v2": "mm/s", "vt": "mm/s", "t": "s", "u_probe": "mm",
                "lambda_probe": "N/mm^2 (>= 0 compressive)", "contact_force": "N", "momentum_y": "N s (along z)"},
     )
 
@@ -150,6 +150,8 @@ PARAMS = (
     Param("rho2", None, "density of ball 2 (default: ball 1's)", unit="t/mm^3", type=float, low=0.0,
           low_strict=True),
     Param("v2", None, "speed of ball 2 toward ball 1 (default: ball 1's v)", unit="mm/s", type=float, low=0.0),
+    Param("vt", 0.0, "ball 1's velocity along x, across the line of centres (an oblique collision: with "
+                     "--friction coulomb --mu the balls exchange a tangential impulse)", unit="mm/s"),
 )
 
 PROBLEM = ProblemSpec(

@@ -113,9 +113,11 @@ def build(comm, L, H, E, rho, v, v2, Nx, Ny, Ny1, gap_time):
         bodies=[Body("striker", side_cells(-1)), Body("struck", side_cells(1))],
         momentum_component=0,
         parameters={"L": L, "H": H, "E": E, "nu": 0.0, "rho": rho, "v": v, "v2": v2, "gap": 2.0 * d,
-                    "gap_time": t0, "Nx": Nx, "Ny": Ny, "Ny1": Ny if Ny1 is None else Ny1, "c": c},
+                    "gap_time": t0, "Nx": Nx, "Ny": Ny, "Ny1": Ny if Ny1 is None else Ny1, "c": c,
+                    "lame_lambda": 0.0, "lame_mu": lame_mu},
         units={"L": "mm", "H": "mm", "E": "N/mm^2", "rho": "t/mm^3", "v": "mm/s", "v2": "mm/s", "gap": "mm",
-               "t": "s", "lambda_probe": "N/mm^2 (>= 0 compressive)", "contact_force": "N per mm of thickness"},
+               "t": "s", "u_probe": "mm", "lambda_probe": "N/mm^2 (>= 0 compressive)",
+               "contact_force": "N per mm of thickness", "lame_lambda": "N/mm^2", "lame_mu": "N/mm^2"},
     )
 
 

@@ -29,6 +29,13 @@ the midpoint scheme whenever the normal contact does no work (a body resting on 
 obstacle). A slip measured from U^{n-1/2} instead (the previous constrained iterate) would
 leave a term lam_T . (U^{n-1/2} - U^n) of either sign in the balance.
 
+Between deformable bodies (``contact_pairs``, :mod:`sdm_dolfinx.method.body_rows`) the normal and
+tangential "dofs" are rows: n . (X_i - sum_v xi_v X_v) and t . (X_i - sum_v xi_v X_v) for each tangent t of
+the master's normal n (:func:`~sdm_dolfinx.solvers.friction_frames.frames_of`), rebuilt before every step
+from the slave vertices' projections. The slip d = t . ((X - U^n)_i - sum_v xi_v (X - U^n)_v) is the relative
+tangential motion, the multiplier acts equally and oppositely on the two bodies, and the energy argument
+above holds with r = R^T lam (R the rows): the tangential part is again 2 sum lam_T,i . d_i <= 0.
+
 The step problem is solved by :class:`~sdm_dolfinx.solvers.friction_newton.FrictionalNewton` (2-D)
 or :class:`~sdm_dolfinx.solvers.friction_cone.FrictionalNewtonCone` (3-D) (Hüeber, Stadler,
 Wohlmuth's primal-dual active set with stick and slip sets), with the step matrix factorised
@@ -125,12 +132,12 @@ def make(friction=None, mu=None, threshold=None):
 def tangential_axes(problem: Any) -> tuple[int, ...]:
     """The components of u tangential to the obstacle (all but the constrained one): ``(0,)`` for a
     2-D problem bounded in y, ``(0, 1)`` for a 3-D one bounded in z; () for a scalar problem. A 3-D
-    problem with ``obstacles`` (whose tangent plane turns from node to node): ``(0, 1, 2)``, the
-    tangential vectors' Cartesian components."""
+    problem with ``obstacles`` or ``contact_pairs`` (whose tangent plane turns from node to node): ``(0, 1,
+    2)``, the tangential vectors' Cartesian components."""
     shape = tuple(problem.shape)
     if not shape:
         return ()
-    if shape[0] == 3 and getattr(problem, "obstacles", None):
+    if shape[0] == 3 and (getattr(problem, "obstacles", None) or getattr(problem, "contact_pairs", None)):
         return (0, 1, 2)
     return tuple(c for c in range(shape[0]) if c != (problem.constraint_component or 0))
 
@@ -225,10 +232,14 @@ def make_solver(integ, options):
         comp = d.problem.constraint_component or 0
         weighted = rows_matrix(weighted.G, comp, tangential_axes(d.problem), d.comm)
         lb = d.weighted_rows.g
+    bodies = getattr(d, "body_rows", None)
+    if bodies is not None:          # between bodies: the rows along the master's normal and tangents, every step
+        bodies.tangential = True
     cls = FrictionalNewtonCone if integ.tdofs.ndim == 2 else FrictionalNewton
     solver = cls(integ.K, ndofs, integ.tdofs, lb, law=f.law, mu=f.mu, threshold=thresholds,
                  symmetric_positive=not integ.block, options=options, factor_matrix=integ.factor_matrix,
-                 frames=rows is not None, rows=weighted)
+                 frames=rows is not None, rows=weighted, surface=None if bodies is None else bodies.read)
     integ.slip = np.zeros(len(integ.tdofs))
-    integ.slip_t = np.zeros((len(integ.tdofs), 3) if rows is not None and rows.gdim == 3 else integ.tdofs.shape)
+    cartesian = (rows is not None and rows.gdim == 3) or (bodies is not None and bodies.gdim == 3)
+    integ.slip_t = np.zeros((len(integ.tdofs), 3) if cartesian else integ.tdofs.shape)
     return solver

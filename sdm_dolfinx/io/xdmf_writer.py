@@ -49,6 +49,18 @@ _XINCLUDE = ("<xi:include xpointer=\"xpointer(/Xdmf/Domain/Grid[@GridType='Unifo
              "self::Geometry])\" />")
 
 
+def body_tag(d):
+    """A DG0 Function numbering each cell's body: k for the cells of ``d.problem.bodies[k - 1]``, 0 for the
+    cells of none (run.json's ``problem.bodies`` names them in this order)."""
+    msh = d.problem.mesh
+    tag = fem.Function(compat.function_space(msh, compat.element("DG", compat.cell_name(msh), 0)))
+    dofs = compat.dofmap_list(tag.function_space)[:, 0]
+    for k, body in enumerate(d.problem.bodies, start=1):
+        cells = np.asarray(body.cells(msh), dtype=np.int64).reshape(-1)
+        tag.x.array[dofs[cells]] = float(k)
+    return tag
+
+
 def time_key(t):
     """A time as dolfinx's XDMF writes it (17 significant digits), and its HDF5 dataset name."""
     text = "%.17g" % float(t)
@@ -63,7 +75,8 @@ class XDMFWriter:
     the SDM velocity in H^h, C^-1 B Vbar, or V of the (U, V) system; Vbar itself for the
     standard method, where H^h = W^h), ``Vbar_W`` (only when H^h differs from W^h in the M
     formulation: the W^h vector Vbar whose Ker(B) part is arbitrary, not a velocity),
-    ``contact_stress`` and ``active``. A P0 velocity is written per cell, the rest at the nodes
+    ``contact_stress`` and ``active``; with the Problem's ``bodies`` the cell field ``body`` (k on the cells
+    of the k-th body, 0 elsewhere: :func:`body_tag`). A P0 velocity is written per cell, the rest at the nodes
     of :func:`~sdm_dolfinx.io.xdmf_nodes.output_nodes`: the mesh's own (on a curved quadratic
     mesh its midside nodes too), or, for a P2 displacement on an affine mesh, the mesh as
     straight quadratic cells, so that the mid-edge values of P2 fields are seen. A field whose
@@ -111,10 +124,12 @@ class XDMFWriter:
             src["tangential_stress"], src["contact_status"] = (stress, 1), (fem.Function(d.Q1), 1)
             if self.tangent:                        # the constrained vertices' blocks in the vector P1 space
                 self._p1_of_c = vertex_to_dof(d.P1, d.cverts[d.c_vertex])
+        if getattr(d.problem, "bodies", None):     # the cells' body: 1, 2, ... in the order of ``bodies``
+            src["body"] = (body_tag(d), 0)
         self.vector_fields = ({"displacement", "velocity", "Vbar_W"} if self.vector else set()) | (
             {"tangential_stress"} if self.tangent else set())
         self.FIELDS = tuple(n for n in ("displacement", "velocity", "Vbar_W", "contact_stress", "active",
-                                        "tangential_stress", "contact_status") if n in src)
+                                        "tangential_stress", "contact_status", "body") if n in src)
         self.src = {n: f for n, (f, _) in src.items()}
         self.cell_fields = {n for n, (_, k) in src.items() if k == 0}
         self._spaces = {}

@@ -1,5 +1,7 @@
 """Gap rows between deformable bodies: the slave vertices of a Problem's ``contact_pairs`` stay
-outside the master surfaces (node-to-surface, frictionless).
+outside the master surfaces (node-to-surface), frictionless or, with the run option ``friction``, with
+tangential rows of the same weights along the tangents of n (:meth:`BodyRows.rows`: the slip is the
+relative tangential motion, :mod:`sdm_dolfinx.contact.friction`).
 
 **The row.** At the start of a step from (U^n, t_n), a slave vertex a_i at y_i = a_i + U^n_i has its
 closest point q on the deformed master surface (:mod:`.master_surface`: the chords of its facets), in
@@ -52,6 +54,7 @@ from sdm_dolfinx.method.dofs import where_least
 from sdm_dolfinx.method.master_surface import MasterSurface
 from sdm_dolfinx.problems.base import label
 from sdm_dolfinx.problems.contact_pairs import slave_vertices
+from sdm_dolfinx.solvers.friction_frames import frames_of
 
 Array = npt.NDArray[np.float64]
 
@@ -68,8 +71,6 @@ def refusal(integ: Any, scheme: Any, vi_solver: str, linear: str) -> Optional[st
         return f"{what}, which mass 'consistent' (the (U, V) block system) does not take yet: use mass 'lumped'"
     if integ.contact != "exact":
         return f"{what}, which contact {integ.contact!r} does not take yet: use contact 'exact'"
-    if integ.friction is not None:
-        return f"{what}: friction between bodies is not built yet (frictionless only)"
     if vi_solver != "ssn" or linear not in ("auto", "schur"):
         return (f"{what}: their gap rows are solved by the semi-smooth Newton with linear strategy schur only (got "
                 f"vi_solver {vi_solver!r}, linear {linear!r})")
@@ -139,6 +140,8 @@ class BodyRows:
         #: the mesh's largest extent along an axis: the scale of the initial state's gap tolerance
         self.size = max(float(np.max(ext[3:] + ext[:3])), 1e-300)
         self._kept: dict[Any, Any] = {}
+        #: :meth:`rows` gives the tangential rows too (friction between bodies: ``contact.friction``)
+        self.tangential = False
         #: which pair held each row in the last :meth:`rows` (-1: none)
         self.pair_of_row = np.full(len(self.dofs), -1, dtype=np.int64)
 
@@ -195,8 +198,11 @@ class BodyRows:
 
     # ---------------------------------------------------------------- the step's rows
     def rows(self, u: Array, t0: float, t1: float, weight: float) -> tuple[tuple[Any, Array], Array]:
-        """((ids (m, k) global dofs, values (m, k)), g (m,)) of the step linearised at ``u`` = U^n (see the
-        module; collective)."""
+        """((ids (m, k) global dofs, values), g (m,)) of the step linearised at ``u`` = U^n (see the module;
+        collective). Values: (m, k), the normal rows; with :attr:`tangential` (friction between bodies)
+        (1 + gdim - 1, m, k): the normal rows, then the same rows along each tangent of the frame
+        :func:`~sdm_dolfinx.solvers.friction_frames.frames_of` builds on n (a row without a master point,
+        zero: it holds nothing this step)."""
         phi, per_pair = self._closest(u, self.x, self.dofs, self._member, key="vertices")
         m, g = len(self.dofs), self.gdim
         width = g + max((s.at.shape[1] * g for s in self.surfaces), default=0)
@@ -204,6 +210,8 @@ class BodyRows:
         ids[:, :g] = self.dofs + self._lo
         rhs = np.zeros(m)
         self.pair_of_row[:] = -1
+        weights = np.zeros((m, width)) if self.tangential else None     # the entries' xi_v (1 at the slave)
+        normals = np.zeros((m, g))
         for k, (sel, n, el, xi, mvals) in enumerate(per_pair):
             self.pair_of_row[sel] = k
             s, free = self.surfaces[k], self._free[k]
@@ -214,9 +222,18 @@ class BodyRows:
             vals[sel, g:g + w] = coef.reshape(len(sel), w)
             ids[sel, g:g + w] = s.dofs[at].reshape(len(sel), w)
             rhs[sel] = np.einsum("ij,ij->i", n[:, :g], u[self.dofs[sel]]) + np.einsum("pak,pak->p", coef, mvals[at])
+            if weights is not None:
+                normals[sel] = n[:, :g]
+                weights[sel, :g] = 1.0
+                weights[sel, g:g + w] = (-xi[:, :, None] * free[at]).reshape(len(sel), w)
         unread = ids < 0
         ids[unread], vals[unread] = self.dofs[:, :1].repeat(width, axis=1)[unread] + self._lo, 0.0
-        return (ids, vals), rhs - phi
+        if weights is None:
+            return (ids, vals), rhs - phi
+        Q = frames_of(normals) * np.any(normals != 0.0, axis=1)[:, None, None]   # (m, g, g), row 0 n
+        comp = np.tile(np.arange(g), width // g)                                # each entry's component
+        tangents = [weights * Q[:, j, comp] for j in range(1, g)]
+        return (ids, np.stack([vals, *tangents])), rhs - phi
 
     def after_step(self, info: dict, u: Array, t1: float, lam: Array) -> None:
         """``info["gap_end"]``: the true signed distance of U^{n+1} = ``u`` (collective)."""

@@ -7,6 +7,9 @@ and :mod:`.render`'s ``Look`` (colour, title, obstacle). A 3-D body is drawn as 
 surface's straight triangles (matplotlib has no hidden-surface removal: pyvista draws it better).
 """
 
+#: the edges' colours of the bodies of a run with ``bodies`` (1, 2, ...; render_pv's)
+BODY_COLOURS = ("#1f77b4", "#2ca02c", "#17becf", "#e377c2", "#bcbd22", "#7f7fff")
+
 
 def p2_edge_lines(xy, samples=9):
     """Polylines of the curved edges of quadratic triangles, for a matplotlib LineCollection.
@@ -108,6 +111,17 @@ def _solid(fig, series, t, scale, look, clim):
     ax = fig.add_subplot()
     pc = ax.tripcolor(xy[:, 0], xy[:, 1], series.linear_triangles(), look.values(u), shading="gouraud",
                       cmap="inferno", vmin=clim[0], vmax=clim[1])
+    bodies = series.node_bodies(t)
+    if bodies is not None:                  # each body's edges in its colour, named in a legend
+        from matplotlib.collections import LineCollection
+        tag, names = bodies
+        tri = series.linear_triangles()
+        for k, name in enumerate(names, start=1):
+            mine = tri[tag[tri[:, 0]] == k]
+            ax.add_collection(LineCollection(xy[np.concatenate([mine[:, [0, 1]], mine[:, [1, 2]], mine[:, [2, 0]]])],
+                                             colors=BODY_COLOURS[(k - 1) % len(BODY_COLOURS)], linewidths=0.5,
+                                             label=f"edges: {name}"))
+        ax.legend(loc="lower left", fontsize=7)
     act = (series.field("active", t) > 0.5) & series.vertex_mask()
     ax.plot(xy[act, 0], xy[act, 1], "o", color="c", ms=4)
     _obstacle_2d(ax, look.obstacle, xy.min(axis=0), xy.max(axis=0))

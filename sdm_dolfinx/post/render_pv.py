@@ -10,6 +10,8 @@ picture's title).
 import os
 
 GREY = "#9a9a9a"
+#: the edges' colours of the bodies of a run with ``bodies`` (1, 2, ...), bright against the inferno map
+BODY_COLOURS = ("#1f77b4", "#2ca02c", "#17becf", "#e377c2", "#bcbd22", "#7f7fff")
 
 
 def setup():
@@ -127,25 +129,43 @@ def solid_frame(plotter, series, t, scale, clim, look, bar=True, title=True):
     font = max(10, round(16 * min(w / 900, h / 700)))       # smaller in a small animation frame
     plotter.add_mesh(grid, scalars="colour", cmap="inferno", clim=clim, name="body", show_scalar_bar=bar,
                      scalar_bar_args=_bar(look, font, position_x=0.83, position_y=0.2, width=0.08, height=0.6))
-    plotter.add_mesh(_edges(series, points), color="white", opacity=0.35, line_width=0.6, name="edges")
+    segments = _edges(series)
+    bodies = series.node_bodies(t)
+    if bodies is None:
+        plotter.add_mesh(_lines(points, segments), color="white", opacity=0.35, line_width=0.6, name="edges")
+    else:                       # each body's edges in its colour, named in a legend
+        tag, names = bodies
+        for k, name in enumerate(names, start=1):
+            mine = segments[tag[segments[:, 0]] == k]
+            if len(mine):
+                plotter.add_mesh(_lines(points, mine), color=BODY_COLOURS[(k - 1) % len(BODY_COLOURS)],
+                                 line_width=1.2, name=f"edges_{k}")
+        if bar:
+            plotter.add_legend([[f"edges: {name}", BODY_COLOURS[k % len(BODY_COLOURS)]] for k, name in enumerate(names)],
+                               bcolor="white", size=(0.22, 0.05 * len(names)), loc="lower left")
     n = _active(plotter, series, t, points, "cyan", 9)
     if title:
         _text(plotter, look.title(t, n, "cyan"), 11 if d == 2 else 10, panels=d - 1, name="title")
 
 
-def _edges(series, points):
-    """The cell edges drawn: the triangles' (2-D) or the surface faces' (3-D), straight between
-    corners, through the mid-edge node of quadratic ones."""
+def _lines(points, segments):
+    """The segments (pairs of node numbers) as a PolyData of lines."""
     import numpy as np
     pv = setup()
+    return pv.PolyData(points, lines=np.hstack([np.full((len(segments), 1), 2), segments]).ravel())
+
+
+def _edges(series):
+    """The cell edges drawn, as pairs of node numbers: the triangles' (2-D) or the surface faces' (3-D),
+    straight between corners, through the mid-edge node of quadratic ones."""
+    import numpy as np
     faces = series.boundary_faces() if series.tdim == 3 else series.cells
     if faces.shape[1] == 3:
         segments = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
     else:                                 # corners, then the mid-edge nodes of 01, 12, 20
         segments = np.concatenate([faces[:, [a, m]] for a, b, m in ((0, 1, 3), (1, 2, 4), (2, 0, 5))]
                                   + [faces[:, [m, b]] for a, b, m in ((0, 1, 3), (1, 2, 4), (2, 0, 5))])
-    segments = np.unique(np.sort(segments, axis=1), axis=0)
-    return pv.PolyData(points, lines=np.hstack([np.full((len(segments), 1), 2), segments]).ravel())
+    return np.unique(np.sort(segments, axis=1), axis=0)
 
 
 def extent(series, times, scale):

@@ -244,6 +244,8 @@ class Problem:
             d["bound"] = "moving: lower_bound(x, t) (each step imposes the scheme's step bound)"
         if self.contact_pairs:
             d["contact_pairs"] = [pair.describe() for pair in self.contact_pairs]
+        if self.bodies:                     # the XDMF's cell field ``body`` numbers them from 1 in this order
+            d["bodies"] = [b.name for b in self.bodies]
         if self.obstacles:
             d["obstacles"] = [o.describe() if hasattr(o, "describe") else {"kind": type(o).__name__}
                               for o in self.obstacles]

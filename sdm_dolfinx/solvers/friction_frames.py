@@ -11,6 +11,22 @@ isotropic in the tangent plane, so the solution does not depend on the tangents'
 from petsc4py import PETSc
 
 import numpy as np
+import scipy.sparse as sp
+
+#: the bound of a row that holds nothing this step (rows between bodies: no master point)
+UNBOUNDED = 1e30
+
+
+def surface_matrix(ids, vals, n_columns, comm):
+    """Every rank's rows ((k, m, w) ``vals`` on the global dofs ``ids`` (m, w): unknown j * m + i is row i
+    along axis j) as one scipy CSR matrix on every rank, in rank order (the layout of
+    :func:`~sdm_dolfinx.solvers.friction_rows.rows_matrix`)."""
+    k, m, w = vals.shape
+    mine = sp.csr_matrix((vals.reshape(-1), (np.repeat(np.arange(k * m), w), np.tile(ids.reshape(-1), k))),
+                         shape=(k * m, n_columns))
+    mine.sum_duplicates()
+    mine.eliminate_zeros()
+    return sp.vstack(comm.allgather(mine), format="csr")
 
 
 def frames_of(normals):
@@ -80,11 +96,29 @@ def rotation(A, dofs, Q, T=None):
 
 class NodeFrames:
     """The frames' side of :class:`~sdm_dolfinx.solvers.friction_newton.FrictionalNewton` (a mixin:
-    it uses the solver's ``frames``, ``rowwise``, ``m``, ``ndofs``, ``tdofs``, ``lb`` and ``system``)."""
+    it uses the solver's ``frames``, ``rowwise``, ``surface``, ``m``, ``ndofs``, ``tdofs``, ``lb`` and
+    ``system``)."""
+
+    #: rows between bodies: the last step's frames (m, k, k; row 0 the normal), None before it
+    row_frames = None
 
     def set_rows(self, normals, lb):
         """Frames (see the class): the unit normals (m x k, Cartesian) and the lower bounds of
-        n_i . x_i of the next step; the tangents are those of :func:`frames_of`."""
+        n_i . x_i of the next step; the tangents are those of :func:`frames_of`. Rows between bodies
+        (``surface``): ``normals`` is (ids (m, w) global dofs, values (k, m, w)): the normal rows, then the
+        tangential ones (:meth:`~sdm_dolfinx.method.body_rows.BodyRows.rows`); a row of zeros holds nothing
+        this step (no bound, no friction)."""
+        if self.surface:
+            ids, vals = normals
+            k = vals.shape[0]
+            self.system.set_matrix(surface_matrix(ids, vals, self.K.getSize()[1], self.comm))
+            #: the rows' frames (m, k, k; row 0 the normal, zero where a row holds nothing)
+            self.row_frames = np.ascontiguousarray(np.transpose(vals[:, :, :k], (1, 0, 2)))
+            alive = np.any(self.row_frames[:, 0] != 0.0, axis=1)
+            self.lb = np.where(alive, np.asarray(lb, dtype=float).reshape(self.m), -UNBOUNDED)
+            if self._s_all is not None:          # Tresca: no threshold where nothing holds
+                self.s = np.where(alive, self._s_all, 0.0)
+            return
         k = 2 if self.tdofs.ndim == 1 else 1 + self.tdofs.shape[1]
         n = np.asarray(normals, dtype=float).reshape(self.m, k)
         self.system.set_frames(frames_of(n))
@@ -114,12 +148,13 @@ class NodeFrames:
         return y[:, 0].copy() if self.tdofs.ndim == 1 else y
 
     def cartesian(self, tangential):
-        """3-D frames: the tangential vectors (m x 2, along each node's t1, t2) as Cartesian ones (m x 3);
-        without frames, or in 2-D, ``tangential`` itself (before the first step's frames: zeros)."""
-        Q = self.system.Q
+        """3-D frames: the tangential vectors (m x 2, along each node's t1, t2) as Cartesian ones (m x 3), also
+        on rows between bodies; without frames, or in 2-D, ``tangential`` itself (before the first step's
+        frames: zeros)."""
         tangential = np.asarray(tangential, dtype=float)
-        if not self.frames or tangential.ndim == 1:
+        if tangential.ndim == 1 or not (self.frames or self.surface):
             return tangential
+        Q = self.system.Q if self.frames else self.row_frames
         if Q is None:
             return np.zeros((len(tangential), 3))
         return np.einsum("ik,ikc->ic", tangential, Q[:, 1:, :])

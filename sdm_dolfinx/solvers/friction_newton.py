@@ -117,6 +117,10 @@ class FrictionalNewton(NodeFrames):
         rows: ``(R, offset)`` of :func:`~sdm_dolfinx.solvers.friction_rows.rows_matrix`: the normal and
             tangential "dofs" are this rank's rows of R (the weighted gap), ``lb`` their bounds;
             ``ndofs`` and ``tdofs`` name the rows' vertices (their own dofs).
+        surface: the global dofs (sorted) rows between bodies may read: the conditions are on rows given
+            anew before every step by :meth:`set_rows` ``((ids, values), lb)``
+            (:meth:`~sdm_dolfinx.method.body_rows.BodyRows.rows` with its tangential rows); ``ndofs`` and
+            ``tdofs`` name the rows' slave vertices.
         frames: the obstacle's normal turns from node to node and step to step (a curved or
             tilted obstacle): ``ndofs`` and ``tdofs`` are then each node's Cartesian dofs
             (components 0, then 1 (and 2)), and :meth:`set_rows` gives the normals and bounds
@@ -130,7 +134,7 @@ class FrictionalNewton(NodeFrames):
 
     def __init__(self, K, ndofs, tdofs, lb, law="tresca", mu=None, threshold=None, coulomb="auto",
                  c_t=0.0, symmetric_positive=True, prefix=None, options=None,
-                 factor_matrix=None, rtol=1e-10, max_it=500, frames=False, rows=None):
+                 factor_matrix=None, rtol=1e-10, max_it=500, frames=False, rows=None, surface=None):
         self.K, self.comm = K, K.getComm().tompi4py()
         self.frames = bool(frames)
         #: the conditions are on rows of a matrix (the weighted gap: :mod:`.friction_rows`)
@@ -147,15 +151,19 @@ class FrictionalNewton(NodeFrames):
             raise ValueError(f"c_t must be >= 0, not {c_t!r}")
         self.law, self.coulomb, self.c_t = law, coulomb, float(c_t)
         self.mu, self.s = _coefficients(law, mu, threshold, m)
+        self._s_all = self.s
         self.prefix, self.options = instance_prefix(self.comm, prefix), dict(options or {})
         with scoped_options(self.prefix, self.options, inherit=True) as scope:
             self.rtol, self.max_it, self.monitor = vi_tolerances(scope, rtol, max_it)
             self.fac = Factorisation(K, symmetric_positive, self.prefix + "factor_", aug=factor_matrix)
         # the contact dofs: normal, then each tangential component (3-D: tdofs is m x 2)
+        #: the rows change every step (contact between bodies: :meth:`set_rows` gives them)
+        self.surface = surface is not None
+        self.rowwise = self.rowwise or self.surface
         if self.rowwise:
-            R, offset = rows
-            self.system = RowSystem(K, R, offset, m * (1 + (self.tdofs.shape[1] if self.tdofs.ndim == 2 else 1)),
-                                    self.fac)
+            k = 1 + (self.tdofs.shape[1] if self.tdofs.ndim == 2 else 1)
+            R, offset = rows if rows is not None else (None, self.comm.exscan(k * m) or 0)
+            self.system = RowSystem(K, R, offset, k * m, self.fac, read=surface)
             #: what a restart replays of the cached columns (``run.solver_state``: by dof)
             self.rows = RowColumns(self.system)
         else:

@@ -53,22 +53,32 @@ def rows_matrix(G, component, components, comm):
 
 class RowSystem(FrictionSystem):
     """The Newton systems of one step on rows (see the module) of ``R`` (:func:`rows_matrix`: this rank's
-    unknowns are its rows ``offset`` .. ``offset`` + k m, normal ones first)."""
+    unknowns are its rows ``offset`` .. ``offset`` + k m, normal ones first).
 
-    def __init__(self, K, R, offset, n_unknowns, fac):
+    ``read``: the rows change from step to step (:meth:`set_matrix`; contact between bodies, whose rows
+    follow the slave vertices' projections) but read only these global dofs (sorted): the columns are
+    cached at them; ``R`` may then be None until the first :meth:`set_matrix`."""
+
+    def __init__(self, K, R, offset, n_unknowns, fac, read=None):
         self.K, self.fac, self.comm = K, fac, K.getComm().tompi4py()
         r0, nloc = K.getOwnershipRange()[0], K.getLocalSize()[0]
-        self.R = R.tocsr()
-        used = np.unique(self.R.indices)
+        used = np.unique(R.tocsr().indices) if read is None else np.asarray(read, dtype=np.int64)
         self.fg = used[(used >= r0) & (used < r0 + nloc)].astype(np.int64)     # this rank's face dofs
         self.cdofs = (self.fg - r0).astype(np.int32)
-        self.Rmine = self.R[:, self.fg].tocsc()                                # R at this rank's face dofs
+        self._read = read is not None
+        self.set_matrix(sp.csr_matrix((0, K.getSize()[1])) if R is None else R)
         self.rows = slice(offset, offset + n_unknowns)
         self.gc = np.arange(offset, offset + n_unknowns, dtype=np.int64)        # the unknowns' global ids
         self.cols = ColumnCache(fac, self.cdofs, nloc)
         self._x0, self._rhs = K.createVecRight(), K.createVecLeft()
         self.starts = 0
         self.Q = None
+
+    def set_matrix(self, R):
+        """The rows of the next steps (every rank's, as :func:`rows_matrix` orders them; with ``read``,
+        entries on those dofs only)."""
+        self.R = R.tocsr()
+        self.Rmine = self.R[:, self.fg].tocsc()                                # R at this rank's face dofs
 
     def _sum(self, local):
         out = np.empty_like(local)

@@ -325,3 +325,29 @@ def test_a_read_only_folder_is_refused(argv, runs, capsys, read_only):
     if COMM.rank == 0:
         assert err.startswith("python -m sdm_dolfinx render: error: cannot write") and err.count("\n") == 1, err
         assert not (folder / "solution_paraview.xdmf").exists() and not (folder / "p.png").exists()
+
+
+def test_bodies_are_tagged_and_coloured(mpi_tmp_path, capsys, monkeypatch):
+    """A run with ``bodies`` writes the cell field ``body`` (k on the k-th body's cells: here the striker's
+    cells, x < 0, are 1 and the struck bar's 2, found from the cells' own coordinates) with the bodies' names
+    in run.json, and render draws each body's edges in its colour with their names (pyvista and matplotlib)."""
+    out = mpi_tmp_path / "bars"
+    assert cli.main(["run", "--problem-file", str(ROOT / "demos" / "two_bars_problem.py"), "--Nx", "10", "--Ny", "2",
+                     "--dt", "5e-7", "--T", "5e-6", "--out", str(out), "--quiet"]) == 0
+    series = render.read_xdmf(out)
+    t = series.times[-1]
+    centre_x = series.points[series.cells, 0].mean(axis=1)
+    np.testing.assert_array_equal(series.field("body", t).reshape(-1), np.where(centre_x < 0.0, 1.0, 2.0))
+    tag, names = series.node_bodies(t)
+    assert names == ["striker", "struck"] and set(tag[series.points[:, 0] < 0]) == {1} and \
+        set(tag[series.points[:, 0] > 0]) == {2}
+    for backend in ("pyvista", "matplotlib"):
+        if backend == "matplotlib":
+            monkeypatch.setattr(render, "have_pyvista", lambda: False)
+        elif not render.have_pyvista():
+            continue
+        png = mpi_tmp_path / f"{backend}.png"
+        status, _, err = _render([out, "--png", png], capsys)
+        assert status == 0, err
+        if COMM.rank == 0:
+            assert png.stat().st_size > 5000

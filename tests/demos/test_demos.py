@@ -51,6 +51,7 @@ NOT_DEMOS = {
     "two_discs_problem.py": "a problem file: tests/physics/test_two_bodies.py runs it",
     "two_balls_problem.py": "a problem file: two_balls.py and tests/physics/test_two_bodies.py run it",
     "cradle_problem.py": "a problem file: tests/physics/test_two_bodies.py runs it",
+    "sliding_blocks_problem.py": "a problem file: tests/physics/test_two_body_friction.py runs it",
 }
 #: measured on the 2-core machine with CI=1: membrane 10 s, disc 12 s, ball 5-13 s, friction 7 s, bar 6 s, punch 9 s, indent 5 s,
 #: two_balls 31 s

@@ -33,7 +33,8 @@ from sdm_dolfinx.run import simulate
 COMM = MPI.COMM_WORLD
 RTOL = {"bowl": 0.0 if COMM.size == 1 else 1e-6, "weighted": 0.0 if COMM.size == 1 else 1e-9,
         "bowl-coulomb": 0.0 if COMM.size == 1 else 1e-6, "weighted-coulomb": 0.0 if COMM.size == 1 else 1e-6,
-        "belt-coulomb": 0.0 if COMM.size == 1 else 1e-6, "two-bars": 0.0 if COMM.size == 1 else 1e-9}
+        "belt-coulomb": 0.0 if COMM.size == 1 else 1e-6, "two-bars": 0.0 if COMM.size == 1 else 1e-9,
+        "blocks-coulomb": 0.0 if COMM.size == 1 else 1e-6}
 DEMOS = Path(__file__).resolve().parents[2] / "demos"
 
 
@@ -65,7 +66,8 @@ def _csv(path):
     return np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
 
 
-@pytest.mark.parametrize("case", ["bowl", "weighted", "bowl-coulomb", "weighted-coulomb", "belt-coulomb", "two-bars"])
+@pytest.mark.parametrize("case", ["bowl", "weighted", "bowl-coulomb", "weighted-coulomb", "belt-coulomb", "two-bars",
+                                  "blocks-coulomb"])
 def test_a_run_with_gap_rows_restarts_exactly(case, mpi_tmp_path):
     if case.startswith("bowl"):
         spec = load_file(DEMOS / "bowl_problem.py")
@@ -80,6 +82,10 @@ def test_a_run_with_gap_rows_restarts_exactly(case, mpi_tmp_path):
         make, stop = (lambda: block.problem(COMM, v0=100.0)), 40
         kw = dict(pair="P2/P1", constrain="weighted", dt=1e-4, T=7e-3, friction="coulomb",
                   friction_options={"mu": 0.3})
+    elif case == "blocks-coulomb":      # friction between bodies: rows rebuilt per step, the sets restored
+        spec = load_file(DEMOS / "sliding_blocks_problem.py")
+        make, stop = (lambda: spec.problem(COMM, nx=5, ny=2, base_nx=12, base_ny=2)), 35
+        kw = dict(pair="P2/P1", dt=5e-5, T=6e-3, friction="coulomb", friction_options={"mu": 0.3})
     elif case == "two-bars":
         spec = load_file(DEMOS / "two_bars_problem.py")
         make, kw, stop = (lambda: spec.problem(COMM, Nx=20, Ny=2)), dict(pair="P2/P1", dt=5e-7, T=6.5e-5), 60
@@ -89,7 +95,7 @@ def test_a_run_with_gap_rows_restarts_exactly(case, mpi_tmp_path):
     simulate(make(), out=mpi_tmp_path / "ref", **kw)
     with pytest.raises(Exception) as e:
         simulate(make(), out=mpi_tmp_path / "cut", checkpoint_every=7, on_step=lambda n, row: n == stop, **kw)
-    assert type(e.value).__name__ == "Interrupted"
+    assert type(e.value).__name__ == "Interrupted", str(e.value)
     simulate(make(), out=mpi_tmp_path / "cut", checkpoint_every=7, restart=True, **kw)
     if COMM.rank == 0:
         info = json.loads((mpi_tmp_path / "cut" / "run.json").read_text())

@@ -96,7 +96,6 @@ def test_bad_declarations_are_refused(change, words):
 
 
 @pytest.mark.parametrize("kw, words", [
-    (dict(friction="coulomb", friction_options={"mu": 0.3}), "friction between bodies is not built yet"),
     (dict(contact="penalty"), "which contact 'penalty' does not take yet"),
     (dict(scheme="newmark"), "which scheme 'newmark' does not take"),
     (dict(mass="consistent", pair="P2/P1"), "mass 'consistent'"),
