@@ -75,6 +75,34 @@ def test_the_rows_push_the_bodies_equally_and_oppositely():
     assert np.all(np.abs(vals[:, 0] + 1.0) < 1e-6)                          # n = -e_x (bar 2's face) on the slave
 
 
+@pytest.mark.mpi
+def test_the_tangential_rows_are_the_normal_rows_along_the_tangent():
+    """Friction between bodies: each slave vertex's tangential row has the normal row's weights along
+    t = (n_y, -n_x): its slave part is a unit vector orthogonal to n, its master part -xi_v t, so it too has
+    no resultant (equal and opposite friction forces). Same moved and sheared state as above."""
+    d = Discretisation(_bars(Ny=3), "P2/P1")
+    rows = d.body_rows
+    u = RNG.standard_normal(d.W.dofmap.index_map.size_local * 2) * 1e-3
+    (ids0, normal), g0 = rows.rows(u, 0.0, 1e-6, 0.5)
+    rows.tangential = True
+    (ids, vals), g = rows.rows(u, 0.0, 1e-6, 0.5)
+    np.testing.assert_array_equal(ids, ids0)
+    np.testing.assert_array_equal(g, g0)
+    np.testing.assert_array_equal(vals[0], normal)
+    n, t = vals[0][:, :2], vals[1][:, :2]
+    np.testing.assert_allclose(np.einsum("ij,ij->i", n, t), 0.0, atol=1e-14)
+    np.testing.assert_allclose(np.linalg.norm(t, axis=1), 1.0, atol=1e-14)
+    np.testing.assert_allclose(t, np.column_stack([n[:, 1], -n[:, 0]]), atol=0.0)
+    for comp in (0, 1):
+        np.testing.assert_allclose(np.sum(np.where(ids % 2 == comp, vals[1], 0.0), axis=1), 0.0, atol=1e-14)
+    # the master part: -xi_v t, with the normal row's xi_v (normal master entry = -xi_v n_c)
+    master = ids[:, 2:] % 2
+    xi_n = np.where(master == 0, normal[:, 2:] / n[:, :1], normal[:, 2:] / n[:, 1:])
+    ok = np.abs(np.where(master == 0, n[:, :1], n[:, 1:])) > 0.5
+    expect = -xi_n * np.where(master == 0, t[:, :1], t[:, 1:])
+    np.testing.assert_allclose(np.where(ok, vals[1][:, 2:], 0.0), np.where(ok, expect, 0.0), atol=1e-14)
+
+
 # ------------------------------------------------------------------ refusals, one line each
 @pytest.mark.parametrize("change, words", [
     (dict(lower_bound=lambda x: x[0]), "set lower_bound to None"),
@@ -216,3 +244,81 @@ def test_bodies_that_share_dofs_are_refused(mpi_tmp_path):
     with pytest.raises(DiscretisationError) as e:
         simulate(p, pair="P2/P1", dt=5e-7, T=1e-6, out=mpi_tmp_path / "r")
     assert "share" in _one_line(e)
+
+
+def _slider_on_two_bases(comm):
+    """A slider [20, 40] x [1, 11] (10 x 5 squares) 1 mm above two bases side by side, A = [0, 30] x [-10, 0]
+    and B = [30.5, 60] x [-10, 0] (clamped below), gravity: the slider's bottom vertices are the slave of
+    two pairs, one per base."""
+    import ufl
+    from petsc4py import PETSc
+    from dolfinx import fem
+    from sdm_dolfinx import compat
+    from sdm_dolfinx.compat.mesh import create_mesh, mesh_geometry_dofmap
+    from sdm_dolfinx.problems import Problem
+
+    def rect(x0, x1, n):
+        m = dmesh.create_rectangle(MPI.COMM_SELF, [np.array(x0), np.array(x1)], n, dmesh.CellType.triangle)
+        return m.geometry.x[:, :2].copy(), np.asarray(mesh_geometry_dofmap(m), dtype=np.int64)
+    if comm.rank == 0:
+        parts = [rect([20.0, 1.0], [40.0, 11.0], [10, 5]), rect([0.0, -10.0], [30.0, 0.0], [15, 4]),
+                 rect([30.5, -10.0], [60.0, 0.0], [15, 4])]
+        x = np.vstack([p[0] for p in parts])
+        shift = np.cumsum([0] + [len(p[0]) for p in parts[:-1]])
+        cells = np.vstack([p[1] + s for p, s in zip(parts, shift)])
+    else:
+        x, cells = np.zeros((0, 2)), np.zeros((0, 3), dtype=np.int64)
+    msh = create_mesh(comm, cells, x, ufl.Mesh(compat.element("Lagrange", "triangle", 1, (2,))))
+
+    def cells_where(test):
+        def found(m):
+            c = np.arange(m.topology.index_map(2).size_local + m.topology.index_map(2).num_ghosts, dtype=np.int32)
+            mid = dmesh.compute_midpoints(m, 2, c)
+            return c[test(mid[:, 0], mid[:, 1])]
+        return found
+
+    def face(y0, x0, x1):
+        return lambda m: dmesh.locate_entities_boundary(
+            m, 1, lambda p: np.isclose(p[1], y0) & (p[0] >= x0 - 1e-9) & (p[0] <= x1 + 1e-9))
+    slave = np.sort(face(1.0, 20.0, 40.0)(msh)).astype(np.int32)
+    ds_c = ufl.Measure("ds", domain=msh, subdomain_data=dmesh.meshtags(msh, 1, slave, np.ones_like(slave)))(1)
+    eps = lambda u: ufl.sym(ufl.grad(u))                                      # noqa: E731
+    weight = fem.Constant(msh, PETSc.ScalarType((0.0, -1e-6 * 9810.0)))
+    return Problem(
+        name="two_bases", mesh=msh, shape=(2,), rho=1e-6,
+        a=lambda u, w: 1000.0 * ufl.inner(eps(u), eps(w)) * ufl.dx, l=lambda w: ufl.inner(weight, w) * ufl.dx,
+        u0=lambda p: np.zeros((2, p.shape[1])), v0=lambda p: np.zeros((2, p.shape[1])),
+        dirichlet_facets=lambda m: dmesh.locate_entities_boundary(m, 1, lambda p: np.isclose(p[1], -10.0)),
+        dirichlet_value=lambda p: np.zeros((2, p.shape[1])),
+        constraint_vertices=None, lower_bound=None,
+        contact_pairs=[ContactPair(slave=face(1.0, 20.0, 40.0), master=face(0.0, 0.0, 30.0), name="A"),
+                       ContactPair(slave=face(1.0, 20.0, 40.0), master=face(0.0, 30.5, 60.0), name="B")],
+        bodies=[Body("slider", cells_where(lambda x, y: y > 0.5))],
+        constraint_component=1, constraint_measure=lambda q: q * ds_c, probe=(30.0, 1.0),
+        extra_columns=("contact_force",))
+
+
+@pytest.mark.mpi
+def test_a_slave_vertex_in_two_pairs_is_held_by_the_nearer_master(mpi_tmp_path):
+    """Every slave vertex of the slider belongs to both pairs; its row is against the nearer base (A up to x
+    = 30, B from x = 32 on: x = 30 is 1 mm from A's corner and 1.118 mm from B's), at the gap 1 mm. Dropped
+    by gravity on both: each pair carries part of it, the pairs' columns add up to the run's, and the
+    slider's momentum balance closes on them: p_y(t) - p_y(0) = sum of the contact impulses - m g t."""
+    p = _slider_on_two_bases(COMM)
+    d = Discretisation(p, "P2/P1")
+    rows = d.body_rows
+    u = np.zeros(d.W.dofmap.index_map.size_local * 2)
+    _, g = rows.rows(u, 0.0, 1e-4, 0.5)
+    x = rows.x[0]
+    assert COMM.allreduce(len(x), op=MPI.SUM) == 11
+    np.testing.assert_array_equal(rows.pair_of_row, np.where(x <= 30.0, 0, 1))
+    np.testing.assert_allclose(rows.phi(u), 1.0, atol=1e-12)
+    dt = 1e-4
+    ts = simulate(p, pair="P2/P1", dt=dt, T=0.02, out=mpi_tmp_path / "r").timeseries
+    fa, fb = ts["contact_force_A"], ts["contact_force_B"]
+    assert fa.max() > 0.0 and fb.max() > 0.0
+    np.testing.assert_allclose(fa + fb, ts["contact_force"], rtol=1e-13, atol=0.0)
+    m = 1e-6 * 20.0 * 10.0
+    py = ts["momentum_slider_y"]
+    np.testing.assert_allclose(py - py[0], np.cumsum(ts["contact_force"]) * dt - m * 9810.0 * ts["t"],
+                               rtol=0.0, atol=1e-9 * m * 9810.0 * ts["t"][-1])
