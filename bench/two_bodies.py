@@ -1,7 +1,7 @@
 """The cost of contact between two deformable bodies: the share of the contact search and the rows.
 
 The target: the contact search and the two-body constraint assembly at most 10 % of a step at
-the size of ball level 4. Each case runs two equal balls head on (demos/two_balls_problem.py, P2/P1,
+the size of ball level 4. Each case runs two equal balls head on (the built-in two_balls, P2/P1,
 midpoint, ``linear="schur"``) from 4 um apart each (contact from the first steps), 6 steps, in a fresh
 process, the median of 3 runs; per case: the mean time of a step with active contact (the Integrator's
 ``step``: the set-up excluded, the steps that compute the columns of newly active rows included), the
@@ -34,12 +34,12 @@ def one(level):
     import numpy as np
     from sdm_dolfinx.method import body_rows
     from sdm_dolfinx.method.discretisation import Discretisation
-    from sdm_dolfinx.problems import load_file
+    from sdm_dolfinx.problems import two_balls
     from sdm_dolfinx.run.integrator import Integrator
 
     comm = MPI.COMM_WORLD
     t0 = time.perf_counter()
-    p = load_file(HERE.parent / "demos" / "two_balls_problem.py").problem(comm, level=level, height=HEIGHT)
+    p = two_balls.problem(comm, level=level, height=HEIGHT)
     spent = {"rows": 0.0, "gap": 0.0}
 
     def timed(name, f):

@@ -3,10 +3,12 @@
 # This demo runs contact between two deformable 3-D bodies with the singular dynamic method and
 # checks it against Hertz's theory of two elastic spheres. It shows how to
 #
-# * run a problem file with several bodies and a contact pair (`demos/two_balls_problem.py`: one mesh
+# * run a problem with several bodies and a contact pair (the built-in `two_balls`,
+#   `sdm_dolfinx/problems/two_balls.py`: one mesh
 #   of two balls, a `ContactPair` of ball 1's lower hemisphere on ball 2's upper one, `Body` columns);
 # * compare the contact force with Hertz's F(t) for the reduced radius, modulus and mass
-#   (`hertz_two` of the problem file; `sdm_dolfinx.validation.hertz.hertz_history`);
+#   (`sdm_dolfinx.problems.two_balls.hertz_two`; the runs and their numbers are
+#   `sdm_dolfinx.validation.two_balls`'s, which the report's section "two balls against Hertz" runs too);
 # * follow the momentum each ball carries through the impact (the per-body columns).
 #
 # Run it with `python demos/two_balls.py [--level 1] [--out DIR]`; `mpirun -n 2` works too
@@ -30,50 +32,35 @@ from mpi4py import MPI
 
 import numpy as np
 
-from sdm_dolfinx.problems import load_file
-from sdm_dolfinx.run import simulate
 from sdm_dolfinx.study.plotting import COLOURS, pyplot, save
-from sdm_dolfinx.validation.hertz import hertz_history
+from sdm_dolfinx.validation import two_balls
 
 COMM = MPI.COMM_WORLD
 HERE = Path(__file__).resolve().parent
-SPEC = load_file(HERE / "two_balls_problem.py")
-#: (label, the problem's values, dt)
-RUNS = (("head on", {}, 4e-5), ("unequal", {"R2": 10.0, "E2": 40.0, "rho2": 3e-9, "v2": 0.0}, 3e-5))
-
-
-def run(level, values, dt):
-    """The time series, the Hertz reference and the masses of one run; it ends 1.5 t_c after the touch."""
-    p = SPEC.problem(COMM, level=level, **values)
-    ref, par = p.parameters["hertz"], p.parameters
-    touch = 2.0 * par["height"] / (par["v"] + par["v2"])
-    ts = simulate(p, pair="P2/P1", dt=dt, T=dt * np.ceil((touch + 1.5 * ref["t_c"]) / dt)).timeseries
-    return {"ts": ts, "ref": ref, "touch": touch, "m1": par["mass1"], "m2": par["mass2"], "v": par["v"],
-            "v2": par["v2"], "dt": dt}
 
 
 # ## The figure
 #
-# Left: the contact force against Hertz's F(t) for each run. Right: each ball's momentum along z over
-# the size of ball 1's initial one (the per-body columns), with a rigid elastic collision's final values
-# dashed.
+# Left: the contact force against Hertz's F(t) for each run (`two_balls.plot` draws one panel per case).
+# Right: each ball's momentum along z over the size of ball 1's initial one (the per-body columns), with a
+# rigid elastic collision's final values dashed.
 
 
 def plot(rows, path, level):
+    from sdm_dolfinx.validation.hertz import hertz_history
     plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.2))
-    for k, (label, r) in enumerate(rows.items()):
-        c, ts = COLOURS[k % len(COLOURS)], r["ts"]
-        t = 1e3 * (ts["t"] - r["touch"])
-        th = np.linspace(0.0, r["ref"]["t_c"], 400)
-        axes[0].plot(1e3 * th, hertz_history(r["ref"], th)[1], color=c, ls="--", lw=1.2, label=f"Hertz, {label}")
-        axes[0].plot(t, ts["contact_force"], color=c, lw=1.5, label=f"P2/P1, {label}")
-        P0 = abs(ts["momentum_ball1_z"][0])
-        m1, m2, v1, v2 = r["m1"], r["m2"], -r["v"], r["v2"]           # the velocities along z
+    for k, r in enumerate(rows):
+        c, t = COLOURS[k % len(COLOURS)], 1e3 * np.asarray(r["t"])
+        th = np.linspace(0.0, r["hertz"]["t_c"], 400)
+        axes[0].plot(1e3 * th, hertz_history(r["hertz"], th)[1], color=c, ls="--", lw=1.2, label=f"Hertz, {r['case']}")
+        axes[0].plot(t, r["force"], color=c, lw=1.5, label=f"P2/P1, {r['case']}")
+        P0 = abs(r["momentum"]["ball1"][0])
+        (m1, m2), (v1, v2) = r["masses"], r["velocities"]                   # the velocities along z
         rigid = {"ball1": m1 * ((m1 - m2) * v1 + 2.0 * m2 * v2) / (m1 + m2),
                  "ball2": m2 * ((m2 - m1) * v2 + 2.0 * m1 * v1) / (m1 + m2)}
         for b, ls in (("ball1", "-"), ("ball2", ":")):
-            axes[1].plot(t, ts[f"momentum_{b}_z"] / P0, color=c, ls=ls, label=f"{b}, {label}")
+            axes[1].plot(t, np.asarray(r["momentum"][b]) / P0, color=c, ls=ls, label=f"{b}, {r['case']}")
             axes[1].axhline(rigid[b] / P0, color=c, ls="--", lw=0.6)
     axes[0].set_ylabel("contact force (N)")
     axes[1].set_ylabel("momentum along z / |ball 1's initial|")
@@ -93,27 +80,23 @@ if __name__ == "__main__":
     args = parser.parse_args()
     if COMM.rank == 0:
         args.out.mkdir(parents=True, exist_ok=True)
-    rows = {label: run(args.level, values, dt) for label, values, dt in RUNS}
+    rows = [two_balls.run_one(case, args.level) for case in two_balls.CASES]
     # ## What the runs show
     #
     # At level 1 (two cells across the contact radius) the peak force is within 5 % of Hertz's
     # (measured -2.7 % head on, -3.2 % unequal) and the impulse within 1 % of 2 m* v, a full elastic
     # rebound of the relative motion (measured 0.2 %, 0.07 %); the total momentum is constant to round-off
     # (the contact forces are equal and opposite) and the energy within 0.5 %.
-    for label, r in rows.items():
-        ts, ref = r["ts"], r["ref"]
-        F, P = ts["contact_force"], ts["momentum_y"]
-        err_F = F.max() / ref["F_max"] - 1.0
-        impulse = np.sum(F) * r["dt"] / (2.0 * ref["mass"] * (r["v"] + (r["v"] if label == "head on" else 0.0)))
-        e = ts["energy"]
+    for r in rows:
+        label = r["case"]
         if COMM.rank == 0:
-            print(f"{label}: F_max = {F.max():.4f} N (Hertz {ref['F_max']:.4f}, {100 * err_F:+.1f} %), impulse / "
-                  f"2 m* v = {impulse:.4f}, largest energy deviation {100 * np.max(np.abs(e / e[0] - 1)):.2f} %, "
-                  f"ball 1 keeps {ts['momentum_ball1_z'][-1] / ts['momentum_ball1_z'][0]:.3f} of its momentum")
-        assert abs(err_F) < 0.05, f"{label}: F_max {err_F:+.1%} against Hertz"
-        assert abs(impulse - 1.0) < 0.01, f"{label}: impulse {impulse:.4f} of 2 m* v"
-        assert np.max(np.abs(P - P[0])) <= 1e-10 * max(abs(P[0]), ref["mass"] * r["v"]), f"{label}: momentum"
-        assert np.max(np.abs(e / e[0] - 1.0)) < 0.005, f"{label}: energy"
+            print(f"{label}: F_max = {r['F_max']:.4f} N (Hertz {r['hertz_F_max']:.4f}, {100 * r['err_F_max']:+.1f} %), "
+                  f"impulse / 2 m* v = {1 + r['err_impulse']:.4f}, largest energy deviation "
+                  f"{100 * r['energy_drift']:.2f} %, ball 1 keeps {r['ball1_keeps']:.3f} of its momentum")
+        assert abs(r["err_F_max"]) < 0.05, f"{label}: F_max {r['err_F_max']:+.1%} against Hertz"
+        assert abs(r["err_impulse"]) < 0.01, f"{label}: impulse {1 + r['err_impulse']:.4f} of 2 m* v"
+        assert r["momentum_drift"] <= 1e-10, f"{label}: momentum"
+        assert r["energy_drift"] < 0.005, f"{label}: energy"
     if COMM.rank == 0:
         print("wrote", args.out / plot(rows, args.out / "two_balls_hertz.png", args.level))
         print("checked: the peak force against Hertz for two spheres, the impulse of a full rebound, the momentum "

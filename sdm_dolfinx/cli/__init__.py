@@ -4,6 +4,7 @@ Commands: one per registered problem (a run: :mod:`.run`), ``run`` for a problem
 the tools ``energy``, ``inspect``, ``figures``, ``render`` and ``compare``. Each command's module does its argparse
 and one-line error handling; nothing in the package imports this layer.
 """
+import argparse
 import contextlib
 import importlib
 import sys
@@ -27,11 +28,23 @@ TOOLS = {
 }
 
 
+class _CommandsFormatter(argparse.HelpFormatter):
+    """Room for every command's name before its help: argparse leaves the commands' own indent out of the
+    width it measures, so a name of 9 letters (two_balls) would go on a line of its own."""
+
+    def add_argument(self, action):
+        super().add_argument(action)
+        names = [len(a.dest) for a in self._iter_indented_subactions(action)] if action.help != argparse.SUPPRESS \
+            else []
+        self._action_max_length = max([self._action_max_length] + [n + self._current_indent + 4 for n in names])
+
+
 def top_parser():
     """The top-level parser, for ``--help``: it names every command with its one-line help
     (each command parses its own options)."""
     parser = Parser(prog=PROG, description="The singular dynamic method for dynamic contact (Renard 2010) on dolfinx.",
-                    epilog=f"`{PROG} COMMAND --help` lists the options of a command.")
+                    epilog=f"`{PROG} COMMAND --help` lists the options of a command.",
+                    formatter_class=_CommandsFormatter)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
     for name in problems.names(builtin=True):
         sub.add_parser(name, help="run: " + problems.get(name).summary, add_help=False)

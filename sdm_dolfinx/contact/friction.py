@@ -234,7 +234,7 @@ def make_solver(integ, options):
         lb = d.weighted_rows.g
     bodies = getattr(d, "body_rows", None)
     if bodies is not None:          # between bodies: the rows along the master's normal and tangents, every step
-        bodies.tangential = True
+        integ.row_options = {"tangential": True}
     cls = FrictionalNewtonCone if integ.tdofs.ndim == 2 else FrictionalNewton
     solver = cls(integ.K, ndofs, integ.tdofs, lb, law=f.law, mu=f.mu, threshold=thresholds,
                  symmetric_positive=not integ.block, options=options, factor_matrix=integ.factor_matrix,

@@ -187,14 +187,15 @@ class Series:
     def node_bodies(self, time):
         """(each node's body number, 0 for none; the bodies' names) of a run whose Problem declares
         ``bodies`` (the cell field ``body`` at ``time`` and run.json's ``problem.bodies``), else None.
-        Bodies share no node (a run refuses them otherwise), so a node's body is any of its cells'."""
+        Bodies share no node (a run refuses them otherwise), so a node's body is that of any of its cells
+        in a body (a cell of none may touch it)."""
         import numpy as np
         names = self.run.get("problem", {}).get("bodies")
         if not names or "body" not in self.fields:
             return None
         tag = np.zeros(len(self.points), dtype=np.int64)
         body = np.rint(self.field("body", time)).astype(np.int64).reshape(-1)
-        tag[self.cells.reshape(-1)] = np.repeat(body, self.cells.shape[1])
+        np.maximum.at(tag, self.cells.reshape(-1), np.repeat(body, self.cells.shape[1]))
         return tag, list(names)
 
     def vertex_mask(self):

@@ -49,6 +49,11 @@ _XINCLUDE = ("<xi:include xpointer=\"xpointer(/Xdmf/Domain/Grid[@GridType='Unifo
              "self::Geometry])\" />")
 
 
+#: the fields a run may write, in the order of the files (each run writes those that apply to it)
+FIELD_ORDER = ("displacement", "velocity", "Vbar_W", "contact_stress", "active", "tangential_stress",
+               "contact_status", "body")
+
+
 def body_tag(d):
     """A DG0 Function numbering each cell's body: k for the cells of ``d.problem.bodies[k - 1]``, 0 for the
     cells of none (run.json's ``problem.bodies`` names them in this order)."""
@@ -128,8 +133,7 @@ class XDMFWriter:
             src["body"] = (body_tag(d), 0)
         self.vector_fields = ({"displacement", "velocity", "Vbar_W"} if self.vector else set()) | (
             {"tangential_stress"} if self.tangent else set())
-        self.FIELDS = tuple(n for n in ("displacement", "velocity", "Vbar_W", "contact_stress", "active",
-                                        "tangential_stress", "contact_status", "body") if n in src)
+        self.FIELDS = tuple(n for n in FIELD_ORDER if n in src)
         self.src = {n: f for n, (f, _) in src.items()}
         self.cell_fields = {n for n, (_, k) in src.items() if k == 0}
         self._spaces = {}
@@ -138,6 +142,13 @@ class XDMFWriter:
         self.steps = list(steps or [])
         self.xml_inode = None
         self._grids = {}
+        if "body" in self.FIELDS and self.steps:    # a run written before the field existed goes on without it
+            older = None
+            if self.comm.rank == 0:
+                with journal.h5("r") as h5:
+                    older = "Function/body" not in h5
+            if self.comm.bcast(older, root=0):
+                self.FIELDS = tuple(n for n in self.FIELDS if n != "body")
         if self.comm.rank != 0:
             return
         if steps is None:

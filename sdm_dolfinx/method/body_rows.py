@@ -100,6 +100,10 @@ class BodyRows:
         # not hold any of its slave facets)
         q1 = vertex_to_dof(d.Q1, d.cverts)
         self._member = np.array([vertex_flag(d, slave_vertices([pair], msh))[q1] > 0 for pair in p.contact_pairs])
+        for k, pair in enumerate(p.contact_pairs):       # no slave vertex: no contact at all, silently
+            if not self.comm.allreduce(int(np.count_nonzero(self._member[k])), op=MPI.SUM):
+                raise DiscretisationError(f"{label(p)}: contact pair {pair.name!r}: slave names no exterior facet "
+                                          f"on any rank (check the facets it selects)")
         blocks = (self.dofs[:, 0] + W.dofmap.index_map.local_range[0] * bs) // bs
         for k, (pair, s) in enumerate(zip(p.contact_pairs, self.surfaces)):
             own = self.comm.allreduce(int(np.count_nonzero(np.isin(blocks[self._member[k]], s.blocks))), op=MPI.SUM)
@@ -107,6 +111,10 @@ class BodyRows:
                 raise DiscretisationError(f"{label(p)}: contact pair {pair.name!r}: {own} slave vertices are on its "
                                           f"master surface too (a body's own facets, or faces that coincide): the "
                                           f"slave and master facets must belong to different bodies")
+        bare = self.comm.allreduce(int(np.count_nonzero(np.asarray(d.cmeasure) <= 0.0)), op=MPI.SUM)
+        if bare:                # its stresses (lambda_probe, contact_stress) would divide by 0
+            raise DiscretisationError(f"{label(p)}: constraint_measure gives {bare} slave vertices no measure: it "
+                                      f"should integrate over the contact pairs' slave facets (q * ds(slave tag))")
         lost = self.comm.allreduce(int(np.count_nonzero(~self._member.any(axis=0))), op=MPI.SUM)
         if lost:
             raise DiscretisationError(f"{label(p)}: {lost} constrained vertices belong to no contact pair's slave "
@@ -140,8 +148,6 @@ class BodyRows:
         #: the mesh's largest extent along an axis: the scale of the initial state's gap tolerance
         self.size = max(float(np.max(ext[3:] + ext[:3])), 1e-300)
         self._kept: dict[Any, Any] = {}
-        #: :meth:`rows` gives the tangential rows too (friction between bodies: ``contact.friction``)
-        self.tangential = False
         #: which pair held each row in the last :meth:`rows` (-1: none)
         self.pair_of_row = np.full(len(self.dofs), -1, dtype=np.int64)
 
@@ -197,9 +203,10 @@ class BodyRows:
         return where_least(self.comm, self.phi(u, t, boundary=True), bx)[:self.gdim]
 
     # ---------------------------------------------------------------- the step's rows
-    def rows(self, u: Array, t0: float, t1: float, weight: float) -> tuple[tuple[Any, Array], Array]:
+    def rows(self, u: Array, t0: float, t1: float, weight: float,
+             tangential: bool = False) -> tuple[tuple[Any, Array], Array]:
         """((ids (m, k) global dofs, values), g (m,)) of the step linearised at ``u`` = U^n (see the module;
-        collective). Values: (m, k), the normal rows; with :attr:`tangential` (friction between bodies)
+        collective). Values: (m, k), the normal rows; with ``tangential`` (friction between bodies)
         (1 + gdim - 1, m, k): the normal rows, then the same rows along each tangent of the frame
         :func:`~sdm_dolfinx.solvers.friction_frames.frames_of` builds on n (a row without a master point,
         zero: it holds nothing this step)."""
@@ -210,7 +217,7 @@ class BodyRows:
         ids[:, :g] = self.dofs + self._lo
         rhs = np.zeros(m)
         self.pair_of_row[:] = -1
-        weights = np.zeros((m, width)) if self.tangential else None     # the entries' xi_v (1 at the slave)
+        weights = np.zeros((m, width)) if tangential else None     # the entries' xi_v (1 at the slave)
         normals = np.zeros((m, g))
         for k, (sel, n, el, xi, mvals) in enumerate(per_pair):
             self.pair_of_row[sel] = k

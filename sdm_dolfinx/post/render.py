@@ -55,7 +55,6 @@ p2_edge_lines, draw_foundation, draw_disc_mesh = (render_mpl.p2_edge_lines, rend
                                                   render_mpl.draw_disc_mesh)
 
 
-
 class RenderWarning(UserWarning):
     """Something a picture leaves out, said once (the obstacle a run's problem does not let us know)."""
 
@@ -180,7 +179,8 @@ class Look:
     def title(self, t, n_active, marker):
         """The title line at time ``t`` with ``n_active`` vertices in contact, drawn in ``marker``."""
         o = self.obstacle
-        said = o.get("note") or ("no obstacle" if "none" in o else "the obstacle is not drawn (see the warning)")
+        none = "contact between bodies" if self.series.run.get("problem", {}).get("contact_pairs") else "no obstacle"
+        said = o.get("note") or (none if "none" in o else "the obstacle is not drawn (see the warning)")
         if self.kind == "membrane":
             return (f"membrane, {_time_label(self.series, t)}: vertical scale x{self.scale:g}; {said}; "
                     f"{marker}: vertices in contact ({n_active})")

@@ -142,6 +142,8 @@ class Integrator:
             scale = a if a is not None and a * a == c_M else np.sqrt(c_M)
             self.factor_matrix = sparse_factor_matrix(self.K, d.A, d.B, d.c_lumped, scale, d.ddofs)
         self.slip = None
+        #: what the step's gap rows are asked for besides U^n (friction between bodies: their tangential rows)
+        self.row_options: dict = {}
         gap_rows = (d.obstacle_rows is not None or d.weighted_rows is not None
                     or d.body_rows is not None) and self.friction is None
         if gap_rows and self.contact == "exact":            # G x >= g (method/gap_solver.py)
@@ -257,7 +259,7 @@ class Integrator:
         if rows is not None and hasattr(self.treatment, "before_step"):    # Nitsche: its fields at U^n
             self.treatment.before_step(U, t, t1, ts.bound_weight)
         elif rows is not None:              # gap rows linearised at U^n (method/obstacle_rows.py)
-            self.solver.set_rows(*rows.rows(U.array_r, t, t1, ts.bound_weight))
+            self.solver.set_rows(*rows.rows(U.array_r, t, t1, ts.bound_weight, **self.row_options))
         if ts.stateful and self.state is None:
             self.state = ts.start(self, U, V, t)
         b = ts.rhs(self, U, V, L, t)

@@ -21,12 +21,15 @@ from sdm_dolfinx.run.options import IDENTITY
 IDENTITY_KEYS = ("problem", "sdm_dolfinx", *IDENTITY, "ranks")
 #: what a restart deliberately allowed to continue with a changed source may find changed
 SOURCE_KEYS = ("sdm_dolfinx", "problem.source_sha256")
+#: what run.json describes of the problem without being part of its identity (derived from its declaration,
+#: which ``problem.source_sha256`` and the parameters identify; older versions did not write them)
+DESCRIPTIVE_KEYS = ("problem.bodies",)
 
 
 def check_identity(saved, now, allow_changed_source=False):
     """A checkpoint continues only the run that wrote it: the first entry that differs is named in
     one line (``problem.parameters.E = 1000.0``, not the whole problem)."""
-    skip = SOURCE_KEYS if allow_changed_source else ()
+    skip = DESCRIPTIVE_KEYS + (SOURCE_KEYS if allow_changed_source else ())
     for key in IDENTITY_KEYS:
         diff = first_difference(saved.get(key), now.get(key), key, skip)
         if diff is not None:

@@ -118,6 +118,12 @@ class NodeFrames:
             self.lb = np.where(alive, np.asarray(lb, dtype=float).reshape(self.m), -UNBOUNDED)
             if self._s_all is not None:          # Tresca: no threshold where nothing holds
                 self.s = np.where(alive, self._s_all, 0.0)
+            if self._sets is not None:          # a row that holds nothing starts free: not active, not stuck
+                active, stick, sigma = self._sets
+                self._sets = (active & alive, stick & alive, sigma)
+            # nor does it carry a force into the Coulomb fixed point's thresholds or the 3-D linearisation
+            self.lam = np.where(alive, self.lam, 0.0)
+            self.lam_t = np.where(alive.reshape((-1,) + (1,) * (np.ndim(self.lam_t) - 1)), self.lam_t, 0.0)
             return
         k = 2 if self.tdofs.ndim == 1 else 1 + self.tdofs.shape[1]
         n = np.asarray(normals, dtype=float).reshape(self.m, k)

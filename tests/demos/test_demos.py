@@ -49,7 +49,6 @@ NOT_DEMOS = {
     "bowl_problem.py": "a problem file: bowl.py and tests/physics/test_obstacle_contact.py run it",
     "two_bars_problem.py": "a problem file: tests/physics/test_two_bodies.py runs it",
     "two_discs_problem.py": "a problem file: tests/physics/test_two_bodies.py runs it",
-    "two_balls_problem.py": "a problem file: two_balls.py and tests/physics/test_two_bodies.py run it",
     "cradle_problem.py": "a problem file: tests/physics/test_two_bodies.py runs it",
     "sliding_blocks_problem.py": "a problem file: tests/physics/test_two_body_friction.py runs it",
 }

@@ -26,14 +26,14 @@ so the plane motion is d'Alembert's 1-D one; the derivation is in the problem fi
   single disc's own peak changes by 2.3 % from level 1 to 2 (its discretisation error): 3 % asserted. The
   two-disc energy stays within 2.0 % of its start (the single disc's: 2.3 %), the momentum to round-off.
 
-* Two identical balls head on (demos/two_balls_problem.py, the built-in ball and its mirror image, 3-D):
+* Two identical balls head on (the built-in two_balls, the built-in ball and its mirror image, 3-D):
   each is the ball on its rigid plane (Hertz's F_max = 3.161 N, t_c = 3.896 ms for both). Measured at level
   1 (P2/P1, dt = 4e-5 s): peak force 0.20 % from the single ball's, impulse 0.15 %, the same contact steps,
   energy within 0.24 %; 1 % asserted, a third of the single ball's own distance to Hertz at this level
   (F_max 3.070 N: 2.9 %).
 
 * Unequal balls (ball 2: R2 = 10 mm, E2 = 40 N/mm^2, rho2 = 3000 kg/m^3, at rest; DG0 materials and
-  density): Hertz with the reduced radius, modulus and mass (demos/two_balls_problem.py, hertz_two):
+  density): Hertz with the reduced radius, modulus and mass (sdm_dolfinx/problems/two_balls.py, hertz_two):
   F_max = 1.064 N, the impulse 2 m* v (a full elastic rebound of the relative motion). Measured at level 1
   (dt = 3e-5 s): F_max -3.2 % (5 % asserted, the issue's; the single ball on its plane: -2.9 % at this
   level), impulse +0.07 % (1 %), the total momentum constant at every step (the contact forces are equal
@@ -62,7 +62,7 @@ import ufl
 from dolfinx import fem
 
 from sdm_dolfinx import compat
-from sdm_dolfinx.problems import load_file
+from sdm_dolfinx.problems import load_file, two_balls
 from sdm_dolfinx.run import simulate
 
 COMM = MPI.COMM_WORLD
@@ -167,7 +167,7 @@ def test_non_matching_faces_keep_the_energy(dt):
 def test_two_balls_head_on_are_one_ball_on_its_plane():
     from sdm_dolfinx.problems import ball
     kw = dict(pair="P2/P1", dt=4e-5, T=5e-3)
-    two = simulate(load_file(DEMOS / "two_balls_problem.py").problem(COMM, level=1), **kw).timeseries
+    two = simulate(two_balls.problem(COMM, level=1), **kw).timeseries
     one = simulate(ball.problem(COMM, level=1), **kw).timeseries
     f1, f2 = one["contact_force"], two["contact_force"]
     np.testing.assert_array_equal(np.flatnonzero(f2 > 0), np.flatnonzero(f1 > 0))
@@ -181,7 +181,7 @@ def test_two_balls_head_on_are_one_ball_on_its_plane():
 @pytest.mark.mpi
 def test_unequal_balls_meet_hertz_and_keep_their_momentum():
     dt, v = 3e-5, 100.0
-    p = load_file(DEMOS / "two_balls_problem.py").problem(COMM, level=1, R2=10.0, E2=40.0, rho2=3e-9, v2=0.0)
+    p = two_balls.problem(COMM, level=1, R2=10.0, E2=40.0, rho2=3e-9, v2=0.0)
     ref = p.parameters["hertz"]
     ts = simulate(p, pair="P2/P1", dt=dt, T=6e-3).timeseries
     f, P = ts["contact_force"], ts["momentum_y"]

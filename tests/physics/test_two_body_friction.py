@@ -8,13 +8,14 @@ what holds exactly.
   momentum balance (the derivation in the problem file) gives p_x(t) - p_x(0) = -mu (p_y(t) - p_y(0) +
   m g t): the friction impulse is mu times the normal impulse whatever the slider's vertical vibration.
   Measured over 10 ms (400 steps, no vertex sticks): 3e-11 relative on 1 and 2 ranks; 1e-8 of m v0
-  asserted (the solver's tolerance is 1e-10 of the right-hand side). Tresca (a threshold s per unit
+  asserted. Started near the base's rim, the slider's end vertex slides off it and loses its row (contact
+  and friction) (the solver's tolerance is 1e-10 of the right-hand side). Tresca (a threshold s per unit
   length, at every slave vertex): the force is s L while every vertex slips, so p_x(t) = m v0 - s L t;
   measured to 5e-12 of m v0, 1e-8 asserted. Friction only dissipates: ``dissipated`` never decreases.
   The energy balance E + dissipated holds within 0.08 % (Coulomb, measured over the 10 ms with the slider
   landing from 1 um and sliding 0.9 mm over the deforming base: the re-projection of the sliding vertices,
   docs/contact.md); 0.5 % asserted.
-* An oblique collision of two balls (demos/two_balls_problem.py at level 1, ball 1 at (vt, 0, -v), ball 2
+* An oblique collision of two balls (the built-in two_balls at level 1, ball 1 at (vt, 0, -v), ball 2
   at (0, 0, v), Coulomb mu): the contact forces are equal and opposite on the two balls, so the total
   momentum is constant to round-off in each component (measured 6.7e-13 of m v; 1e-10 asserted, as for the
   frictionless pairs). Per vertex |lam_T| <= mu lam_N, so the tangential impulse sum lam_T dt never exceeds
@@ -37,16 +38,16 @@ from mpi4py import MPI
 import numpy as np
 import pytest
 
-from sdm_dolfinx.problems import load_file
+from sdm_dolfinx.problems import load_file, two_balls
 from sdm_dolfinx.run import simulate
 
 COMM = MPI.COMM_WORLD
 DEMOS = Path(__file__).resolve().parents[2] / "demos"
 
 
-def _slider(friction, **options):
-    p = load_file(DEMOS / "sliding_blocks_problem.py").problem(COMM)
-    ts = simulate(p, pair="P2/P1", dt=2.5e-5, T=0.01, friction=friction, friction_options=options).timeseries
+def _slider(friction, T=0.01, x0=None, **options):
+    p = load_file(DEMOS / "sliding_blocks_problem.py").problem(COMM, x0=x0)
+    ts = simulate(p, pair="P2/P1", dt=2.5e-5, T=T, friction=friction, friction_options=options).timeseries
     q = p.parameters
     return ts, q["mass"], q["v0"], q["gravity"], q["width"]
 
@@ -74,8 +75,26 @@ def test_tresca_slider_decelerates_at_s_L_over_m():
     assert np.all(np.diff(ts["dissipated"]) >= -1e-12 * ts["energy"][0])
 
 
+@pytest.mark.parametrize("law, options", [("tresca", {"tresca_threshold": 0.0333}), ("coulomb", {"mu": 0.3})])
+@pytest.mark.mpi
+def test_a_vertex_sliding_off_the_base_loses_its_row_and_its_friction(law, options):
+    """The slider's right end starts 0.06 mm from the base's right rim and slides past it: that slave vertex
+    then has no master point, so its row holds nothing (neither contact nor friction, whatever it held the
+    step before: a stuck or active row that became empty made the Newton system singular). Tresca: the force
+    is s L while all 11 vertices hold, then s (L - h/2) (the end vertex's lumped length is h/2 = 1 mm)."""
+    ts, m, v0, _, width = _slider(law, T=1.5e-3, x0=39.94, **options)
+    assert np.max(ts["n_slip"]) == 11 and ts["n_slip"][-1] == 10 and np.max(ts["n_stick"]) == 0
+    if law == "tresca":
+        s = options["tresca_threshold"]
+        force = ts["tangential_force"][1:]
+        held = ts["n_slip"][1:] == 11
+        np.testing.assert_allclose(force[held], -s * width, rtol=1e-10)
+        np.testing.assert_allclose(force[~held], -s * (width - 1.0), rtol=1e-10)
+    assert np.all(np.diff(ts["dissipated"]) >= -1e-12 * ts["energy"][0])
+
+
 def _oblique(mu, vt):
-    p = load_file(DEMOS / "two_balls_problem.py").problem(COMM, level=1, vt=vt)
+    p = two_balls.problem(COMM, level=1, vt=vt)
     dt = 4e-5
     ts = simulate(p, pair="P2/P1", dt=dt, T=5e-3, friction="coulomb", friction_options={"mu": mu}).timeseries
     m, v = p.parameters["mass1"], p.parameters["v"]

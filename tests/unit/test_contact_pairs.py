@@ -84,8 +84,7 @@ def test_the_tangential_rows_are_the_normal_rows_along_the_tangent():
     rows = d.body_rows
     u = RNG.standard_normal(d.W.dofmap.index_map.size_local * 2) * 1e-3
     (ids0, normal), g0 = rows.rows(u, 0.0, 1e-6, 0.5)
-    rows.tangential = True
-    (ids, vals), g = rows.rows(u, 0.0, 1e-6, 0.5)
+    (ids, vals), g = rows.rows(u, 0.0, 1e-6, 0.5, tangential=True)
     np.testing.assert_array_equal(ids, ids0)
     np.testing.assert_array_equal(g, g0)
     np.testing.assert_array_equal(vals[0], normal)
@@ -195,6 +194,7 @@ def test_a_point_beyond_the_rim_of_the_master_has_no_row():
 @pytest.mark.parametrize("slave, words", [
     (lambda m: np.array([-1], dtype=np.int32), "slave returned facet indices outside"),
     (lambda m: np.arange(m.topology.index_map(1).size_local, dtype=np.int32), "interior facets"),
+    (lambda m: np.zeros(0, dtype=np.int32), "slave names no exterior facet on any rank"),    # else: no contact
 ])
 def test_bad_slave_facets_are_refused(slave, words):
     p = _bars()
@@ -202,6 +202,19 @@ def test_bad_slave_facets_are_refused(slave, words):
     with pytest.raises(DiscretisationError) as e:
         Discretisation(p, "P2/P1")
     assert words in _one_line(e)
+
+
+def test_a_constraint_measure_off_the_slave_facets_is_refused():
+    """The bars' measure on bar 2's end face (the master) instead of bar 1's (the slave): the slave vertices'
+    stresses would divide by 0."""
+    import ufl
+    p = _bars()
+    master = np.sort(p.contact_pairs[0].master(p.mesh)).astype(np.int32)
+    tags = dmesh.meshtags(p.mesh, 1, master, np.ones_like(master))
+    p.constraint_measure = lambda q: q * ufl.Measure("ds", domain=p.mesh, subdomain_data=tags)(1)
+    with pytest.raises(DiscretisationError) as e:
+        Discretisation(p, "P2/P1")
+    assert "constraint_measure gives 3 slave vertices no measure" in _one_line(e)
 
 
 def test_a_body_that_is_its_own_master_is_refused():

@@ -1,14 +1,16 @@
-"""Two elastic balls meeting head on: contact between two deformable 3-D bodies (a problem file).
+"""Two elastic balls colliding (head on, unequal or oblique): contact between two deformable 3-D bodies.
 
-    python -m sdm_dolfinx run --problem-file demos/two_balls_problem.py --out output/two_balls
-    python -m sdm_dolfinx run --problem-file demos/two_balls_problem.py --R2 10 --E2 40 --rho2 3e-9 --v2 0
+    python -m sdm_dolfinx two_balls --out output/two_balls
+    python -m sdm_dolfinx two_balls --R2 10 --E2 40 --rho2 3e-9 --v2 0 --out output/unequal
+    python -m sdm_dolfinx two_balls --vt 300 --friction coulomb --mu 0.1 --out output/oblique
 
 Ball 1: the built-in ball (R = 20 mm, E = 10 N/mm^2, nu = 0.3, rho = 1000 kg/m^3, the gmsh mesh of
 ``--level`` refined toward its south pole) centred at (0, 0, R + d) moving down at v. Ball 2: its mirror
 image in the plane z = 0 moving up at v (by default), or a ball of its own (--R2, --E2, --nu2, --rho2,
 --v2: its own mesh, refined toward its north pole), one mesh of two connected parts with the
 materials and densities per cell (DG0), no gravity. Contact pair: the vertices of ball 1's lower
-hemisphere (slave) stay outside ball 2's upper hemisphere (master), frictionless.
+hemisphere (slave) stay outside ball 2's upper hemisphere (master), frictionless or (``--friction``)
+with friction on their relative slip; ``--vt`` gives ball 1 a velocity across the line of centres.
 
 Hertz for two elastic spheres (:func:`hertz_two`): the curvatures add, 1/R* = 1/R1 + 1/R2, the
 compliances add, 1/E* = (1 - nu1^2)/E1 + (1 - nu2^2)/E2, the masses combine into the reduced mass
@@ -23,6 +25,8 @@ The time series has each ball's momentum, kinetic and elastic energy (``momentum
 
 Units: mm, N, s, tonne (stresses in MPa, energies in mJ, momenta in N s).
 """
+from typing import Any
+
 from mpi4py import MPI
 from petsc4py import PETSc
 
@@ -32,8 +36,8 @@ from dolfinx import fem, mesh as dmesh
 
 from sdm_dolfinx import compat
 from sdm_dolfinx.compat.mesh import create_mesh, mesh_geometry_dofmap
-from sdm_dolfinx.problems import Body, ContactPair, Param, Problem, ProblemSpec
 from sdm_dolfinx.problems import ball, ball_mesh
+from sdm_dolfinx.problems.base import Body, ContactPair, Param, Problem, ProblemSpec
 
 
 def hertz_two(R1, E1, nu1, rho1, v1, R2, E2, nu2, rho2, v2):
@@ -154,7 +158,12 @@ PARAMS = (
                      "--friction coulomb --mu the balls exchange a tangential impulse)", unit="mm/s"),
 )
 
-PROBLEM = ProblemSpec(
-    name="two_balls", build=build, params=PARAMS, doc=__doc__,
+SPEC = ProblemSpec(
+    name="two_balls", build=build, params=PARAMS, doc=(__doc__ or "").strip(),
     defaults={"pair": "P2/P1", "scheme": "midpoint", "dt": 4e-5, "T": 5e-3, "time_unit": "s"},
 )
+
+
+def problem(comm: MPI.Comm = MPI.COMM_WORLD, **values: Any) -> Problem:
+    """The two balls; ``values`` are :data:`PARAMS`, the others at their defaults."""
+    return SPEC.problem(comm, **values)
