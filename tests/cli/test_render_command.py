@@ -350,8 +350,8 @@ def test_bodies_are_tagged_and_coloured(mpi_tmp_path, capsys, monkeypatch):
         status, _, err = _render([out, "--png", png], capsys)
         assert status == 0, err
         if COMM.rank == 0:
-            import imageio.v2 as imageio
-            a = imageio.imread(png)[..., :3].astype(int)
+            import matplotlib.image as mpimg
+            a = np.rint(255 * mpimg.imread(png)[..., :3]).astype(int)
             for colour in ("#1f77b4", "#2ca02c"):          # the striker's and the struck bar's edges
                 rgb = np.array([int(colour[i:i + 2], 16) for i in (1, 3, 5)])
                 assert np.count_nonzero(np.all(np.abs(a - rgb) <= 12, axis=2)) > 100, (backend, colour)
