@@ -25,7 +25,7 @@ from dolfinx import fem, mesh as dmesh
 
 from sdm_dolfinx import compat
 from sdm_dolfinx.compat.mesh import create_mesh, mesh_geometry_dofmap
-from sdm_dolfinx.problems import Body, ContactPair, Param, Problem, ProblemSpec
+from sdm_dolfinx.problems import Body, ContactPair, Param, Problem, ProblemSpec, cells_where, facets_where
 from sdm_dolfinx.problems.disc import sigma
 from sdm_dolfinx.problems.disc_mesh import LEVELS, make_mesh
 
@@ -50,32 +50,18 @@ def build(comm, n, level, radius, rho, lame_lambda, lame_mu, v):
     tdim = msh.topology.dim
     fdim, tol = tdim - 1, 1e-8 * radius
 
-    def disc_of(m, entities, dim):
-        """The disc (0..n-1) of each cell (``dim`` = tdim) or boundary facet (its cell's disc)."""
-        if dim == fdim:
-            m.topology.create_connectivity(fdim, tdim)
-            f2c = m.topology.connectivity(fdim, tdim)
-            entities = f2c.array[f2c.offsets[entities]]
-        mid = dmesh.compute_midpoints(m, tdim, entities)[:, 0] if len(entities) else np.zeros(0)
-        return np.rint(mid / (2.0 * radius)).astype(np.int64)
+    def of_disc(k):
+        """Whether points (cells' midpoints) are in disc k (0..n-1)."""
+        return lambda c: np.rint(c[0] / (2.0 * radius)) == k
 
     def half(k, right):
         """Disc k's boundary facets on its right (``right``) or left half."""
-        def found(m):
-            f = dmesh.locate_entities_boundary(m, fdim, lambda x: np.full(x.shape[1], True))
-            f = f[disc_of(m, f, fdim) == k]
-            xs = m.geometry.x[compat.entities_to_geometry(m, fdim, f)][:, :, 0] - 2.0 * k * radius if len(f) \
-                else np.zeros((0, 2))
-            keep = np.all(xs >= -tol, axis=1) if right else np.all(xs <= tol, axis=1)
-            return f[keep]
-        return found
+        centre = 2.0 * k * radius
+        return facets_where((lambda x: x[0] >= centre - tol) if right else (lambda x: x[0] <= centre + tol),
+                            side=of_disc(k))
 
     def cells_of(k):
-        def found(m):
-            cells = np.arange(m.topology.index_map(tdim).size_local + m.topology.index_map(tdim).num_ghosts,
-                              dtype=np.int32)
-            return cells[disc_of(m, cells, tdim) == k]
-        return found
+        return cells_where(of_disc(k))
 
     slaves = np.sort(np.concatenate([half(k, True)(msh) for k in range(n - 1)])).astype(np.int32)
     ds_c = ufl.Measure("ds", domain=msh, subdomain_data=dmesh.meshtags(

@@ -45,7 +45,7 @@ from dolfinx import fem, mesh as dmesh
 
 from sdm_dolfinx import compat
 from sdm_dolfinx.compat.mesh import create_mesh, mesh_geometry_dofmap
-from sdm_dolfinx.problems import Body, ContactPair, Param, Problem, ProblemSpec
+from sdm_dolfinx.problems import Body, ContactPair, Param, Problem, ProblemSpec, cells_where, facets_where
 
 
 def _rectangle(x0, x1, n):
@@ -72,27 +72,17 @@ def build(comm, width, height, nx, ny, base_width, base_height, base_nx, base_ny
     msh = blocks_mesh(comm, x0, gap, width, height, nx, ny, base_width, base_height, base_nx, base_ny)
     fdim, tol = msh.topology.dim - 1, 1e-9 * max(width, base_width)
 
-    def side_of(m, dim, entities):
-        """+1 for the slider's side (y > 0), -1 for the base's, by the cells of the entities."""
-        if dim == fdim:
-            m.topology.create_connectivity(fdim, fdim + 1)
-            f2c = m.topology.connectivity(fdim, fdim + 1)
-            entities = f2c.array[f2c.offsets[entities]]
-        mid = dmesh.compute_midpoints(m, fdim + 1, entities)[:, 1] if len(entities) else np.zeros(0)
-        return np.where(mid > 0.0, 1, -1)
+    def on_side(side):
+        """Whether points (cells' midpoints) are in the slider (``side`` +1, y > 0) or the base (-1)."""
+        return lambda c: side * c[1] > 0.0
 
     def contact_face(side):
         """The slider's bottom facets (``side`` +1, y = gap) or the base's top ones (-1, y = 0), by their cells."""
-        def found(m):
-            f = dmesh.locate_entities_boundary(m, fdim, lambda x: np.abs(x[1] - (gap if side > 0 else 0.0)) <= tol)
-            return f[side_of(m, fdim, f) == side]
-        return found
+        y0 = gap if side > 0 else 0.0
+        return facets_where(lambda x: np.abs(x[1] - y0) <= tol, side=on_side(side))
 
     def cells_of(side):
-        def found(m):
-            cells = np.arange(m.topology.index_map(2).size_local + m.topology.index_map(2).num_ghosts, dtype=np.int32)
-            return cells[side_of(m, fdim + 1, cells) == side]
-        return found
+        return cells_where(on_side(side))
 
     slave = np.sort(contact_face(1)(msh)).astype(np.int32)
     ds_c = ufl.Measure("ds", domain=msh, subdomain_data=dmesh.meshtags(

@@ -36,7 +36,7 @@ from dolfinx import fem, mesh as dmesh
 
 from sdm_dolfinx import compat
 from sdm_dolfinx.compat.mesh import create_mesh, mesh_geometry_dofmap
-from sdm_dolfinx.problems import Body, ContactPair, Param, Problem, ProblemSpec
+from sdm_dolfinx.problems import Body, ContactPair, Param, Problem, ProblemSpec, cells_where, facets_where
 
 
 def _rectangle(d, L, H, Nx, Ny):
@@ -72,22 +72,11 @@ def build(comm, L, H, E, rho, v, v2, Nx, Ny, Ny1, gap_time):
     def facets(x0, side):
         """The end face x = x0 of the bar on the ``side`` (-1, +1) of x = 0 (by its cells, so that touching
         faces differ)."""
-        def found(m):
-            m.topology.create_connectivity(fdim, fdim + 1)
-            f = dmesh.locate_entities_boundary(m, fdim, lambda x: np.isclose(x[0], x0, rtol=0.0, atol=1e-9 * L))
-            f2c = m.topology.connectivity(fdim, fdim + 1)
-            cells = f2c.array[f2c.offsets[f]]
-            mid = dmesh.compute_midpoints(m, fdim + 1, cells)[:, 0] if len(f) else np.zeros(0)
-            return f[side * mid > 0]
-        return found
+        return facets_where(lambda x: np.isclose(x[0], x0, rtol=0.0, atol=1e-9 * L), side=lambda c: side * c[0] > 0)
 
     def side_cells(side):
         """The cells of the bar on the ``side`` (-1, +1) of x = 0."""
-        def found(m):
-            n = m.topology.index_map(2).size_local + m.topology.index_map(2).num_ghosts
-            cells = np.arange(n, dtype=np.int32)
-            return cells[side * dmesh.compute_midpoints(m, 2, cells)[:, 0] > 0]
-        return found
+        return cells_where(lambda c: side * c[0] > 0)
 
     slave = np.sort(facets(-d, -1)(msh)).astype(np.int32)
     tags = dmesh.meshtags(msh, fdim, slave, np.full(len(slave), 1, dtype=np.int32))

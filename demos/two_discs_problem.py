@@ -27,7 +27,7 @@ from dolfinx import fem, mesh as dmesh
 
 from sdm_dolfinx import compat
 from sdm_dolfinx.compat.mesh import create_mesh, mesh_geometry_dofmap
-from sdm_dolfinx.problems import ContactPair, Param, Problem, ProblemSpec
+from sdm_dolfinx.problems import ContactPair, Param, Problem, ProblemSpec, facets_where
 from sdm_dolfinx.problems.disc import sigma
 from sdm_dolfinx.problems.disc_mesh import LEVELS, make_mesh
 
@@ -55,13 +55,7 @@ def build(comm, level, radius, height, rho, lame_lambda, lame_mu, v):
     def half(upper):
         """The disc near the plane of symmetry: the upper disc's lower half (``upper``) or the lower disc's
         upper half, its boundary facets chosen by their cells' side (touching discs differ)."""
-        def found(m):
-            m.topology.create_connectivity(fdim, fdim + 1)
-            f = dmesh.locate_entities_boundary(m, fdim, lambda x: np.abs(x[1]) <= cy + tol)
-            f2c = m.topology.connectivity(fdim, fdim + 1)
-            mid = dmesh.compute_midpoints(m, fdim + 1, f2c.array[f2c.offsets[f]])[:, 1] if len(f) else np.zeros(0)
-            return f[(mid > 0) == upper]
-        return found
+        return facets_where(lambda x: np.abs(x[1]) <= cy + tol, side=lambda c: (c[1] > 0) == upper)
 
     slave = np.sort(half(True)(msh)).astype(np.int32)
     ds_c = ufl.Measure("ds", domain=msh, subdomain_data=dmesh.meshtags(

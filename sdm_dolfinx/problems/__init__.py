@@ -7,10 +7,11 @@ problem file a user loads
 (:func:`load_file`); a new problem is one new file.
 """
 from sdm_dolfinx.problems.base import Body, ContactPair, DirichletPart, Param, Problem, ProblemInputError, ProblemSpec  # noqa: F401
+from sdm_dolfinx.problems.selectors import cells_where, facets_where  # noqa: F401
 from sdm_dolfinx.problems.registry import get, load_file, names, rebuild, register, resolve, spec_of_run  # noqa: F401
 from sdm_dolfinx.problems import ball, bar, block, disc, membrane, rod1d, two_balls  # noqa: E402
 
-__all__ = ["Body", "ContactPair", "DirichletPart", "Param", "Problem", "ProblemInputError", "ProblemSpec", "get", "load_file", "names",
+__all__ = ["Body", "ContactPair", "cells_where", "facets_where", "DirichletPart", "Param", "Problem", "ProblemInputError", "ProblemSpec", "get", "load_file", "names",
            "rebuild", "register", "resolve", "spec_of_run", "ball", "bar", "block", "disc", "membrane", "rod1d",
            "two_balls"]
 

@@ -4,7 +4,7 @@ Several bodies are one mesh whose connected parts are the bodies (each with its 
 through the forms ``a(u, w)`` and ``l(w)``, e.g. ``dx(subdomain_id)`` or a DG0 coefficient). A
 :class:`ContactPair` names two boundary parts of it by their facets: the vertices of the
 ``slave`` facets must stay outside the body behind the ``master`` facets (node-to-surface, one
-pass). The discretisation builds the gap rows (:mod:`sdm_dolfinx.method.body_rows`); this module
+pass). :func:`~sdm_dolfinx.problems.selectors.facets_where` builds either side from where its facets are. The discretisation builds the gap rows (:mod:`sdm_dolfinx.method.body_rows`); this module
 only declares and checks the data.
 
 A Problem with contact pairs declares no other constraint: ``constraint_vertices=None`` (the
@@ -29,7 +29,8 @@ if TYPE_CHECKING:
 @dataclass(frozen=True)
 class ContactPair:
     """Two boundary parts that may touch: every vertex of ``slave`` stays outside the body whose
-    boundary facets are ``master`` (frictionless, node-to-surface, the master's outward normal).
+    boundary facets are ``master`` (node-to-surface, the master's outward normal; frictionless, or with the
+    run's ``friction`` on the slave vertices' slip relative to the master).
 
     Attributes:
         slave: ``mesh -> local facet indices`` (exterior facets): their vertices are the
@@ -43,7 +44,7 @@ class ContactPair:
     name: str = "contact"
 
     def describe(self) -> dict[str, Any]:
-        return {"name": self.name, "kind": "node-to-surface (slave vertices on the master facets), frictionless"}
+        return {"name": self.name, "kind": "node-to-surface (slave vertices on the master facets; friction: the run's)"}
 
 
 def slave_vertices(pairs: Sequence[ContactPair], mesh: Mesh) -> npt.NDArray[np.int32]:

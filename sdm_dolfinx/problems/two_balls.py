@@ -38,6 +38,7 @@ from sdm_dolfinx import compat
 from sdm_dolfinx.compat.mesh import create_mesh, mesh_geometry_dofmap
 from sdm_dolfinx.problems import ball, ball_mesh
 from sdm_dolfinx.problems.base import Body, ContactPair, Param, Problem, ProblemSpec
+from sdm_dolfinx.problems.selectors import cells_where, facets_where
 
 
 def hertz_two(R1, E1, nu1, rho1, v1, R2, E2, nu2, rho2, v2):
@@ -94,20 +95,11 @@ def build(comm, level, radius, height, E, nu, rho, v, R2, E2, nu2, rho2, v2, vt)
     def half(upper):
         """The ball near the plane of symmetry: the upper ball's lower half (``upper``) or the lower ball's
         upper half, its boundary facets chosen by their cells' side (touching balls differ)."""
-        def found(m):
-            m.topology.create_connectivity(fdim, fdim + 1)
-            f = dmesh.locate_entities_boundary(m, fdim, lambda x: np.where(
-                x[2] > 0.0, x[2] <= radius + height + tol, x[2] >= -R2 - height - tol))
-            f2c = m.topology.connectivity(fdim, fdim + 1)
-            mid = dmesh.compute_midpoints(m, fdim + 1, f2c.array[f2c.offsets[f]])[:, 2] if len(f) else np.zeros(0)
-            return f[(mid > 0) == upper]
-        return found
+        return facets_where(lambda x: np.where(x[2] > 0.0, x[2] <= radius + height + tol, x[2] >= -R2 - height - tol),
+                            side=lambda c: (c[2] > 0) == upper)
 
     def side_cells(upper):
-        def found(m):
-            cells = np.arange(m.topology.index_map(3).size_local + m.topology.index_map(3).num_ghosts, dtype=np.int32)
-            return cells[(dmesh.compute_midpoints(m, 3, cells)[:, 2] > 0.0) == upper]
-        return found
+        return cells_where(lambda c: (c[2] > 0.0) == upper)
 
     slave = np.sort(half(True)(msh)).astype(np.int32)
     ds_c = ufl.Measure("ds", domain=msh, subdomain_data=dmesh.meshtags(

@@ -23,7 +23,7 @@ IDENTITY_KEYS = ("problem", "sdm_dolfinx", *IDENTITY, "ranks")
 SOURCE_KEYS = ("sdm_dolfinx", "problem.source_sha256")
 #: what run.json describes of the problem without being part of its identity (derived from its declaration,
 #: which ``problem.source_sha256`` and the parameters identify; older versions did not write them)
-DESCRIPTIVE_KEYS = ("problem.bodies",)
+DESCRIPTIVE_KEYS = ("problem.bodies", "problem.contact_pairs")
 
 
 def check_identity(saved, now, allow_changed_source=False):

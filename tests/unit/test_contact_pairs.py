@@ -204,6 +204,25 @@ def test_bad_slave_facets_are_refused(slave, words):
     assert words in _one_line(e)
 
 
+@pytest.mark.mpi
+def test_facets_and_cells_chosen_by_where_they_are():
+    """sdm_dolfinx.problems.facets_where / cells_where on the touching case: two bars of Nx x Ny squares
+    meeting at x = 0 (gap_time 0): the facets on x = 0 are each bar's end face (Ny facets each, told apart by
+    their cells' side), and each bar has 2 Nx Ny triangles."""
+    from sdm_dolfinx.problems import cells_where, facets_where
+    p = _bars(gap_time=0.0, Nx=4, Ny=3)
+    msh = p.mesh
+    at_zero = lambda x: np.isclose(x[0], 0.0)                                  # noqa: E731
+    count = lambda f: COMM.allreduce(int(np.count_nonzero(                     # noqa: E731
+        f < msh.topology.index_map(1).size_local)), op=MPI.SUM)
+    left, right, both = (facets_where(at_zero, side=lambda c: c[0] < 0)(msh),
+                         facets_where(at_zero, side=lambda c: c[0] > 0)(msh), facets_where(at_zero)(msh))
+    assert count(left) == count(right) == 3 and count(both) == 6 and not np.intersect1d(left, right).size
+    cells = cells_where(lambda c: c[0] < 0)(msh)
+    owned = msh.topology.index_map(2).size_local
+    assert COMM.allreduce(int(np.count_nonzero(cells < owned)), op=MPI.SUM) == 2 * 4 * 3
+
+
 def test_a_constraint_measure_off_the_slave_facets_is_refused():
     """The bars' measure on bar 2's end face (the master) instead of bar 1's (the slave): the slave vertices'
     stresses would divide by 0."""
