@@ -7,10 +7,13 @@ process, the median of 3 runs; per case: the mean time of a step with active con
 ``step``: the set-up excluded, the steps that compute the columns of newly active rows included), the
 time of the rows (:meth:`BodyRows.rows`: the master surface's displacements gathered, every slave vertex
 projected, the rows assembled) and of the end-of-step gap (a second projection), and their share of the
-steps.
+steps. ``--friction``: ball 1 also moves across at 100 mm/s (an oblique collision) under Coulomb friction
+(mu = 0.3): the rows carry their tangential rows too, and the frictional solver gathers every rank's rows
+into one matrix every step (``NodeFrames.set_rows``: its time is the column "rows matrix").
 
     .venv/bin/python bench/two_bodies.py                        # levels 1-3, 1 rank; results/two_bodies.json
     .venv/bin/python bench/two_bodies.py --ranks 2 --level 3
+    .venv/bin/python bench/two_bodies.py --friction --level 3
     .venv/bin/python bench/two_bodies.py --table
 """
 import argparse
@@ -28,19 +31,21 @@ STEPS, DT, HEIGHT = 6, 4e-5, 0.004
 REPEATS = 3
 
 
-def one(level):
-    """Run one case in this process; returns its record."""
+def one(level, friction=False):
+    """Run one case in this process (``friction``: oblique, Coulomb mu = 0.3); returns its record."""
     from mpi4py import MPI
     import numpy as np
     from sdm_dolfinx.method import body_rows
     from sdm_dolfinx.method.discretisation import Discretisation
+    from sdm_dolfinx.contact.friction import make as make_friction
     from sdm_dolfinx.problems import two_balls
     from sdm_dolfinx.run.integrator import Integrator
+    from sdm_dolfinx.solvers import friction_frames
 
     comm = MPI.COMM_WORLD
     t0 = time.perf_counter()
-    p = two_balls.problem(comm, level=level, height=HEIGHT)
-    spent = {"rows": 0.0, "gap": 0.0}
+    p = two_balls.problem(comm, level=level, height=HEIGHT, vt=100.0 if friction else 0.0)
+    spent = {"rows": 0.0, "gap": 0.0, "matrix": 0.0}
 
     def timed(name, f):
         def wrapper(self, *a, **k):
@@ -51,8 +56,9 @@ def one(level):
         return wrapper
     body_rows.BodyRows.rows = timed("rows", body_rows.BodyRows.rows)
     body_rows.BodyRows.after_step = timed("gap", body_rows.BodyRows.after_step)
+    friction_frames.NodeFrames.set_rows = timed("matrix", friction_frames.NodeFrames.set_rows)
     d = Discretisation(p, "P2/P1")
-    integ = Integrator(d, "midpoint", DT, linear="schur")
+    integ = Integrator(d, "midpoint", DT, linear="schur", friction=make_friction("coulomb", 0.3) if friction else None)
     U, V = d.initial_state()
     V = integ.initial_velocity(V)
     setup = time.perf_counter() - t0
@@ -66,26 +72,27 @@ def one(level):
         actives.append(int(info["n_active"]))
     contact = [t for t, a in zip(times, actives) if a > 0]
     integ.destroy()
-    return {"level": level, "ranks": comm.size, "dim_W": d.dims()["dim_W"], "slave_vertices": d.num_constraints,
+    return {"level": level, "ranks": comm.size, "friction": bool(friction), "matrix_s": spent["matrix"], "dim_W": d.dims()["dim_W"], "slave_vertices": d.num_constraints,
             "master_facets": len(d.body_rows.surfaces[0].cells), "setup_s": setup, "step_s": times,
             "n_active": actives, "contact_step_s": float(np.mean(contact)) if contact else None,
             "rows_s": spent["rows"], "gap_s": spent["gap"]}
 
 
-def run_fresh(level, ranks):
+def run_fresh(level, ranks, friction=False):
     """One record from a fresh process (the median time of REPEATS runs)."""
-    return median_of_fresh_runs(__file__, ["--one", level], ranks, REPEATS)
+    return median_of_fresh_runs(__file__, ["--one", level] + (["--friction"] if friction else []), ranks, REPEATS)
 
 
 def table(results):
-    lines = ["| level | ranks | dim W^h | slave vertices | master facets | active (last step) | contact step (s) | "
-             "rows (s/step) | end gap (s/step) | search and rows / step | set-up (s) |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
-    for r in sorted(results, key=lambda r: (r["level"], r["ranks"])):
-        steps = sum(r["step_s"])
-        lines.append(f"| {r['level']} | {r['ranks']} | {r['dim_W']} | {r['slave_vertices']} | {r['master_facets']} | "
-                     f"{r['n_active'][-1]} | {r['contact_step_s']:.4f} | {r['rows_s'] / STEPS:.4f} | "
-                     f"{r['gap_s'] / STEPS:.4f} | {(r['rows_s'] + r['gap_s']) / steps:.1%} | {r['setup_s']:.1f} |")
+    lines = ["| level | ranks | friction | dim W^h | slave vertices | master facets | active (last step) | "
+             "contact step (s) | rows (s/step) | rows matrix (s/step) | end gap (s/step) | search and rows / step | "
+             "set-up (s) |", "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in sorted(results, key=lambda r: (r["level"], r["ranks"], r.get("friction", False))):
+        steps, mat = sum(r["step_s"]), r.get("matrix_s", 0.0)
+        lines.append(f"| {r['level']} | {r['ranks']} | {'Coulomb' if r.get('friction') else '-'} | {r['dim_W']} | "
+                     f"{r['slave_vertices']} | {r['master_facets']} | {r['n_active'][-1]} | {r['contact_step_s']:.4f} | "
+                     f"{r['rows_s'] / STEPS:.4f} | {mat / STEPS:.4f} | {r['gap_s'] / STEPS:.4f} | "
+                     f"{(r['rows_s'] + r['gap_s'] + mat) / steps:.1%} | {r['setup_s']:.1f} |")
     return "\n".join(lines)
 
 
@@ -93,11 +100,12 @@ if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--level", type=int, action="append", choices=(1, 2, 3, 4))
     ap.add_argument("--ranks", type=int, default=1)
+    ap.add_argument("--friction", action="store_true", help="an oblique collision under Coulomb friction (mu 0.3)")
     ap.add_argument("--table", action="store_true", help="print the table of the recorded results")
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.one:
-        rec = one(args.one)
+        rec = one(args.one, args.friction)
         from mpi4py import MPI
         if MPI.COMM_WORLD.rank == 0:
             print(json.dumps(rec))
@@ -105,8 +113,9 @@ if __name__ == "__main__":
     results = json.loads(RESULTS.read_text()) if RESULTS.exists() else []
     if not args.table:
         for level in args.level or LEVELS:
-            rec = run_fresh(level, args.ranks)
-            results = [r for r in results if (r["level"], r["ranks"]) != (level, args.ranks)] + [rec]
+            rec = run_fresh(level, args.ranks, args.friction)
+            results = [r for r in results if (r["level"], r["ranks"], r.get("friction", False))
+                       != (level, args.ranks, args.friction)] + [rec]
             print(f"level {level} ranks {args.ranks}: contact step {rec['contact_step_s']:.4f} s (repeats "
                   f"{', '.join(f'{t:.4f}' for t in rec['repeats'])})", flush=True)
             RESULTS.parent.mkdir(exist_ok=True)
