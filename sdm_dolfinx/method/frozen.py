@@ -16,6 +16,18 @@ import numpy as np
 from sdm_dolfinx.problems.density import is_field
 
 
+def _literals(form):
+    """The values of a UFL form's scalar literals (the Python numbers its integrands read), sorted: a
+    multiset that does not depend on the order UFL keeps a sum's or a product's operands in. (The form's
+    signature did: a rebuilt, unchanged form's signature was measured to differ from the assembled one's
+    in the middle of the test suite, a change reported where nothing had changed.)"""
+    from ufl.constantvalue import ScalarValue
+    from ufl.corealg.traversal import pre_traversal
+    values = [complex(e.value()) for integral in form.integrals() for e in pre_traversal(integral.integrand())
+              if isinstance(e, ScalarValue)]
+    return np.sort(np.array(values, dtype=complex))
+
+
 def _form_data(form, where, hint):
     """(label, current value) getters of the Constants and Functions of a UFL form."""
     items = []
@@ -67,8 +79,8 @@ class FrozenData:
 
     def watch_forms(self):
         """From now on also compare a(u, w) and l(w), rebuilt from the Problem before every step, with
-        the forms assembled (their UFL signatures, in which a Python number is a literal): a number
-        that user code changes during the run would otherwise be ignored. About 0.2-0.5 ms per step,
+        the forms assembled (the values of their literals, :func:`_literals`: a Python number in a form is
+        one): a number that user code changes during the run would otherwise be ignored. About 0.2-0.5 ms per step,
         so the run asks for it only when it calls user code (``on_step``, ``observe``)."""
         a_form, l_form = self.forms
         w, u = sorted(a_form.arguments(), key=lambda arg: arg.number())
@@ -78,9 +90,9 @@ class FrozenData:
                 ("l(w)", l_form, lambda: self.problem.l(w),
                  "L is assembled once: a load that changes must be a fem.Constant of l(w) and the Problem must "
                  "declare its time (Problem(time=t)), so that L is reassembled every step")):
-            self.items.append((f"a Python number read by {label}", lambda build=build: np.array(build().signature()),
-                               hint, False))
-            self.start.append(np.array(form.signature()))
+            self.items.append((f"a Python number read by {label}", lambda build=build: _literals(build()), hint,
+                               False))
+            self.start.append(_literals(form))
 
     def changed(self):
         """None, or one line naming the first datum whose value differs from the start (collective)."""
