@@ -25,6 +25,8 @@ def _literals(form):
     from ufl.corealg.traversal import pre_traversal
     values = [complex(e.value()) for integral in form.integrals() for e in pre_traversal(integral.integrand())
               if isinstance(e, ScalarValue)]
+    values += [complex(v) for integral in form.integrals() for v in integral.metadata().values()   # a degree
+               if isinstance(v, (int, float)) and not isinstance(v, bool)]
     return np.sort(np.array(values, dtype=complex))
 
 
