@@ -65,7 +65,6 @@ class RowSystem(FrictionSystem):
         used = np.unique(R.tocsr().indices) if read is None else np.asarray(read, dtype=np.int64)
         self.fg = used[(used >= r0) & (used < r0 + nloc)].astype(np.int64)     # this rank's face dofs
         self.cdofs = (self.fg - r0).astype(np.int32)
-        self._read = read is not None
         self.set_matrix(sp.csr_matrix((0, K.getSize()[1])) if R is None else R)
         self.rows = slice(offset, offset + n_unknowns)
         self.gc = np.arange(offset, offset + n_unknowns, dtype=np.int64)        # the unknowns' global ids
