@@ -11,6 +11,10 @@ export OMPI_MCA_btl := self,vader
 export OMPI_MCA_rmaps_base_oversubscribe := 1
 export OMPI_MCA_mpi_yield_when_idle := 1
 MPIRUN := mpirun -n $(NP)
+# the serial leg in JOBS pytest-xdist workers (Debian's python3-pytest-xdist), a test file per worker
+# (its module fixtures computed once); JOBS=1 runs it in one process
+JOBS ?= 2
+XDIST := $(if $(filter-out 1,$(JOBS)),-n $(JOBS) --dist loadfile)
 STAMP := .venv/.installed
 
 .PHONY: setup typecheck test test-serial test-mpi demo clean
@@ -32,7 +36,7 @@ typecheck: setup
 	$(PY) -m mypy
 
 test-serial: setup
-	$(PY) -m pytest -q tests
+	$(PY) -m pytest -q $(XDIST) tests
 
 test-mpi: setup
 	$(MPIRUN) $(PY) -m mpi4py -m pytest -q tests
@@ -47,7 +51,7 @@ clean:
 # under /var/cache/sdm_dolfinx and reused; needs root. See scripts/dolfinx09.sh.
 .PHONY: test-dolfinx09
 test-dolfinx09: setup
-	NP=$(NP) bash scripts/dolfinx09.sh test
+	NP=$(NP) JOBS=$(JOBS) bash scripts/dolfinx09.sh test
 
 # The paper's figures, Table 2 and an HTML report regenerated from the runs' files (see
 # sdm_dolfinx/paper/): `make figures` runs the full study into output/study (81 runs, about

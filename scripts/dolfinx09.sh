@@ -32,11 +32,12 @@ MARKER=.sdm_dolfinx_rootfs       # inside the rootfs: made by this script, safe 
 LOCK="$ROOTFS.lock"
 SUITE=trixie
 NP=${NP:-2}
+JOBS=${JOBS:-2}      # the 1-rank suite in JOBS pytest-xdist workers (as the Makefile's test-serial)
 INNER_SRC=/src/sdm_dolfinx
 # Debian packages the project uses (the same set scripts/setup.sh installs on Debian 12, minus
 # the venv tools: the chroot imports the checkout through PYTHONPATH).
 PACKAGES="python3-dolfinx python3-petsc4py python3-mpi4py python3-h5py python3-matplotlib
-python3-scipy python3-gmsh python3-pytest openmpi-bin"
+python3-scipy python3-gmsh python3-pytest python3-pytest-xdist openmpi-bin"
 PACKAGES=$(echo $PACKAGES)        # one line, single spaces (it is also the stamp's content)
 
 T0=$SECONDS
@@ -277,9 +278,13 @@ case "$cmd" in
     say "the membrane time series agree between the host's dolfinx and 0.9 (tests/integration/test_versions.py)" ;;
   test)
     rc1=0; rc2=0
-    say "pytest on 1 rank"
+    say "pytest on 1 rank ($JOBS workers)"
     t=$SECONDS
-    in_chroot python3 -m pytest -q tests || rc1=$?
+    if [ "$JOBS" -gt 1 ]; then
+      in_chroot python3 -m pytest -q -n "$JOBS" --dist loadfile tests || rc1=$?
+    else
+      in_chroot python3 -m pytest -q tests || rc1=$?
+    fi
     say "1 rank: exit $rc1 in $((SECONDS - t)) s"
     say "pytest on $NP ranks"
     t=$SECONDS

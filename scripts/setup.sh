@@ -5,7 +5,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$(pwd)
 PKGS="python3-dolfinx python3-petsc4py python3-mpi4py python3-h5py python3-matplotlib python3-pytest
-python3-gmsh python3-scipy python3-venv python3-pip python3-setuptools openmpi-bin libopenblas0-serial"
+python3-pytest-xdist python3-gmsh python3-scipy python3-venv python3-pip python3-setuptools openmpi-bin libopenblas0-serial"
 # libopenblas0-serial: Debian's alternatives then give MUMPS OpenBLAS instead of the reference BLAS
 # (3-D factorisations 1.7-4x faster, results equal to 1e-12: bench/README.md "BLAS").
 missing=()

@@ -7,7 +7,19 @@ import subprocess
 import tempfile
 from pathlib import Path
 
-from mpi4py import MPI
+#: the MPI launchers' variable prefixes (Open MPI 4 and 5, PMIx, PRRTE, MPICH's Hydra)
+_MPI_PREFIXES = ("OMPI_", "PMIX_", "OPAL_", "PRTE_", "HYDRA_", "PMI_")
+if os.environ.get("PYTEST_XDIST_WORKER") and "SDM_ENV_BEFORE_MPI" in os.environ:
+    # a pytest-xdist worker (make test's serial leg, ``-n 2``) inherits the controller's environment as
+    # MPI_Init left it: the controller's singleton job (its PMIx server, its job id). A test's own mpirun
+    # started with that environment exits 1 without a word: keep only what the controller started with.
+    _keep = set(os.environ["SDM_ENV_BEFORE_MPI"].split(","))
+    for _k in [k for k in os.environ if k.startswith(_MPI_PREFIXES) and k not in _keep]:
+        del os.environ[_k]
+elif not os.environ.get("PYTEST_XDIST_WORKER"):
+    os.environ["SDM_ENV_BEFORE_MPI"] = ",".join(k for k in os.environ if k.startswith(_MPI_PREFIXES))
+
+from mpi4py import MPI  # noqa: E402  (after the environment above: MPI_Init reads it)
 
 import pytest
 
