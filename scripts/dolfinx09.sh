@@ -35,9 +35,10 @@ NP=${NP:-2}
 JOBS=${JOBS:-2}      # the 1-rank suite in JOBS pytest-xdist workers (as the Makefile's test-serial)
 INNER_SRC=/src/sdm_dolfinx
 # Debian packages the project uses (the same set scripts/setup.sh installs on Debian 12, minus
-# the venv tools: the chroot imports the checkout through PYTHONPATH).
+# the venv tools: the chroot imports the checkout through PYTHONPATH). libopenblas0-serial: as on
+# the host, MUMPS gets OpenBLAS through Debian's alternatives instead of the reference BLAS.
 PACKAGES="python3-dolfinx python3-petsc4py python3-mpi4py python3-h5py python3-matplotlib
-python3-scipy python3-gmsh python3-pytest python3-pytest-xdist openmpi-bin"
+python3-scipy python3-gmsh python3-pytest python3-pytest-xdist openmpi-bin libopenblas0-serial"
 PACKAGES=$(echo $PACKAGES)        # one line, single spaces (it is also the stamp's content)
 
 T0=$SECONDS
