@@ -23,6 +23,14 @@ from mpi4py import MPI  # noqa: E402  (after the environment above: MPI_Init rea
 
 import pytest
 
+# pytest-xdist's controller rebuilds a worker's warning by importing the module of its category, in the
+# thread that serves that worker: two workers reporting at once deadlocked on importing sdm_dolfinx
+# (Python 3.13, dolfinx 0.9's chroot). The modules of the package's warnings are imported here first.
+import sdm_dolfinx.contact.friction_bound  # noqa: E402,F401
+import sdm_dolfinx.post.render  # noqa: E402,F401
+import sdm_dolfinx.run.boundary_sink  # noqa: E402,F401
+import sdm_dolfinx.run.linear_range  # noqa: E402,F401
+
 
 @pytest.fixture
 def mpi_tmp_path():
