@@ -289,9 +289,9 @@ def rigid_rolling(problem, theta=THETA):
     lumped: 0.88 % below 3/2 m R² on level 1, 0.20 % on level 2 (consistent C: exact, and the
     fitted rolling acceleration is the closed form to 1e-4 on both levels)."""
     d = Discretisation(problem, "P2/P1")
-    r = fem.Function(d.W)
-    r.interpolate(lambda x: np.vstack([x[1], -x[0]]))
-    r = compat.petsc_vec(r)
+    rotation = fem.Function(d.W)           # kept: its PETSc vector dies with it (dolfinx 0.9, a segfault)
+    rotation.interpolate(lambda x: np.vstack([x[1], -x[0]]))
+    r = compat.petsc_vec(rotation)
     Mr, ex = r.duplicate(), d.rigid_vector(0)
     d.M.mult(r, Mr)
     Mex = ex.duplicate()
