@@ -1,5 +1,5 @@
 """A density per cell (``Problem.rho`` a dolfinx Function, sdm_dolfinx/problems/density.py): the same run as
-the constant it equals (bit for bit: the same forms with a coefficient in place of a constant), a heavier
+the constant it equals (the same forms with a coefficient in place of a constant: to round-off), a heavier
 striker hands on its momentum (the mass forms read the field), and bad fields refused in one line."""
 from pathlib import Path
 
@@ -35,8 +35,10 @@ def test_a_density_field_equal_to_the_constant_is_the_same_run():
     p = _bars()
     p.rho = _dg0(p, p.rho, p.rho)
     b = simulate(p, **KW).timeseries
+    # bit for bit on Debian 12; dolfinx 0.9 with OpenBLAS measured 3.8e-12 (its kernels' order depends on where
+    # the buffers are): the same run to round-off, 1e-10 relative to each column's largest value
     for c in ("energy", "contact_force", "momentum_x", "u_probe"):
-        np.testing.assert_array_equal(a[c], b[c])
+        np.testing.assert_allclose(b[c], a[c], rtol=0, atol=1e-10 * np.max(np.abs(a[c])), err_msg=c)
 
 
 @pytest.mark.mpi
