@@ -35,8 +35,8 @@ def test_a_density_field_equal_to_the_constant_is_the_same_run():
     p = _bars()
     p.rho = _dg0(p, p.rho, p.rho)
     b = simulate(p, **KW).timeseries
-    # bit for bit on Debian 12; dolfinx 0.9 with OpenBLAS measured 3.8e-12 (its kernels' order depends on where
-    # the buffers are): the same run to round-off, 1e-10 relative to each column's largest value
+    # bit for bit on Debian 12; dolfinx 0.9 with OpenBLAS measured 3.8e-12 (cause not established): the same
+    # run to round-off, 1e-10 relative to each column's largest value
     for c in ("energy", "contact_force", "momentum_x", "u_probe"):
         np.testing.assert_allclose(b[c], a[c], rtol=0, atol=1e-10 * np.max(np.abs(a[c])), err_msg=c)
 
