@@ -1,10 +1,13 @@
 """Shared fixtures: an MPI-safe temporary folder, collective clean-up between tests, the problem
-and scheme registries restored after a test, and a folder made read-only even for root."""
+and scheme registries restored after a test, and a folder made read-only even for root; on several
+ranks, a watchdog that ends the run when one rank fails and the others are left waiting."""
 import gc
 import os
 import shutil
 import subprocess
+import sys
 import tempfile
+import threading
 from pathlib import Path
 
 #: the MPI launchers' variable prefixes (Open MPI 4 and 5, PMIx, PRRTE, MPICH's Hydra)
@@ -30,6 +33,74 @@ import sdm_dolfinx.contact.friction_bound  # noqa: E402,F401
 import sdm_dolfinx.post.render  # noqa: E402,F401
 import sdm_dolfinx.run.boundary_sink  # noqa: E402,F401
 import sdm_dolfinx.run.linear_range  # noqa: E402,F401
+
+
+class _Watchdog:
+    """Ends a run on several ranks (``os._exit(1)``: mpirun then stops every rank) that would hang.
+
+    A test that fails on one rank only leaves the others inside a collective call the failed rank
+    will never make: each of them waits for ever, and a CI job runs out of time instead of reporting.
+    On several ranks the failure is printed at once, and if this rank has not started the next test
+    (or reached the end of the session together with the others) ``SDM_TEST_DESYNC_SECONDS`` (120) s
+    later, the run ends. Any test taking longer than ``SDM_TEST_TIMEOUT`` (1800) s on several ranks
+    ends it too (a deadlock without a failure)."""
+
+    def __init__(self):
+        self._timer = None
+        self.capture = None      # pytest's capture manager: the message must reach the real stderr
+
+    def arm(self, seconds, why):
+        self.disarm()
+        self._timer = threading.Timer(seconds, self._fire, args=(why,))
+        self._timer.daemon = True
+        self._timer.start()
+
+    def disarm(self):
+        if self._timer is not None:
+            self._timer.cancel()
+            self._timer = None
+
+    def _fire(self, why):
+        if self.capture is not None:
+            self.capture.suspend_global_capture(in_=False)
+        sys.stderr.write(f"\nrank {MPI.COMM_WORLD.rank}: {why}: ending the run\n")
+        sys.stderr.flush()
+        os._exit(1)
+
+
+_WATCHDOG = _Watchdog()
+_SEVERAL = MPI.COMM_WORLD.size > 1
+
+
+def pytest_configure(config):
+    _WATCHDOG.capture = config.pluginmanager.getplugin("capturemanager")
+
+
+def pytest_runtest_logstart(nodeid, location):
+    if _SEVERAL:
+        seconds = float(os.environ.get("SDM_TEST_TIMEOUT", "1800"))
+        _WATCHDOG.arm(seconds, f"{nodeid} has run for {seconds:.0f} s on {MPI.COMM_WORLD.size} ranks (SDM_TEST_TIMEOUT)")
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    report = (yield).get_result()
+    if _SEVERAL and report.failed:
+        rank = MPI.COMM_WORLD.rank
+        sys.stderr.write(f"\nrank {rank}: FAILED {item.nodeid} ({report.when})\n{report.longreprtext}\n")
+        sys.stderr.flush()
+        seconds = float(os.environ.get("SDM_TEST_DESYNC_SECONDS", "120"))
+        _WATCHDOG.arm(seconds, f"{item.nodeid} failed on this rank and the other ranks did not follow within "
+                               f"{seconds:.0f} s (they wait in a collective call this rank left)")
+
+
+def pytest_sessionfinish(session, exitstatus):
+    """Every rank reaches the end together (polled, so that an armed watchdog can still fire)."""
+    if _SEVERAL:
+        request = MPI.COMM_WORLD.Ibarrier()
+        while not request.Test():
+            threading.Event().wait(0.01)
+        _WATCHDOG.disarm()
 
 
 @pytest.fixture

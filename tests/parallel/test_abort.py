@@ -35,3 +35,30 @@ def test_exception_on_one_rank_aborts_every_rank(tmp_path):
     assert "Traceback" not in p.stderr
     assert time.time() - t0 < 120
 
+
+
+@pytest.mark.skipif(COMM.size > 1, reason="starts its own mpirun")
+def test_a_test_failing_on_one_rank_ends_the_run(tmp_path):
+    """A test that fails on rank 0 only leaves rank 1 waiting in a collective call: the suite's
+    watchdog (tests/conftest.py) prints the failure at once and ends the run a few seconds later,
+    instead of the hang that would run a CI job out of time."""
+    import shutil
+    shutil.copy(os.path.join(os.path.dirname(__file__), os.pardir, "conftest.py"), tmp_path / "conftest.py")
+    (tmp_path / "test_one_rank_fails.py").write_text(
+        "from mpi4py import MPI\n\n"
+        "def test_fails_on_rank_0_only():\n"
+        "    comm = MPI.COMM_WORLD\n"
+        "    assert comm.rank != 0, 'fails on rank 0 only'\n"
+        "    comm.allreduce(1)    # rank 1 waits here for rank 0, which has left the test\n\n"
+        "def test_after():\n"
+        "    pass\n")
+    env = {**os.environ, "OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
+           "OMPI_MCA_btl": "self,vader", "OMPI_MCA_rmaps_base_oversubscribe": "1", "SDM_TEST_DESYNC_SECONDS": "3"}
+    t0 = time.time()
+    p = subprocess.run(["mpirun", "-n", "2", sys.executable, "-m", "mpi4py", "-m", "pytest", "-q", "-p", "no:cacheprovider",
+                        "test_one_rank_fails.py"], cwd=tmp_path, capture_output=True, text=True, timeout=180, env=env)
+    assert p.returncode != 0
+    assert "rank 0: FAILED test_one_rank_fails.py::test_fails_on_rank_0_only (call)" in p.stderr
+    assert "fails on rank 0 only" in p.stderr
+    assert "did not follow within 3 s" in p.stderr
+    assert time.time() - t0 < 90
