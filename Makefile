@@ -47,11 +47,17 @@ demo: setup
 clean:
 	rm -rf .venv output demos/output *.egg-info .mypy_cache
 
-# The same suite on dolfinx 0.9: Debian 13 (trixie) in a chroot, built once (~5 min, ~3 GB)
-# under /var/cache/sdm_dolfinx and reused; needs root. See scripts/dolfinx09.sh.
-.PHONY: test-dolfinx09
+# The same suite on current FEniCSx in a Debian 13 (trixie) chroot, built once (~5 min, ~3 GB) under
+# /var/cache/sdm_dolfinx and reused; needs root. See scripts/debian13.sh. test-dolfinx09: Debian 13's
+# dolfinx 0.9; test-dolfinx011: PyPI's wheel dolfinx-solver-real (dolfinx 0.11, PETSc 3.25 without
+# SuiteSparse or hypre, MPICH) in a venv inside it. SERIAL_MARK / MPI_MARK: pytest -m expressions
+# choosing each leg's tests (CI: .ci/run).
+.PHONY: test-dolfinx09 test-dolfinx011
 test-dolfinx09: setup
-	NP=$(NP) JOBS=$(JOBS) bash scripts/dolfinx09.sh test
+	NP=$(NP) JOBS=$(JOBS) SDM_DOLFINX=0.9 bash scripts/debian13.sh test
+
+test-dolfinx011: setup
+	NP=$(NP) JOBS=$(JOBS) SDM_DOLFINX=0.11 bash scripts/debian13.sh test
 
 # The paper's figures, Table 2 and an HTML report regenerated from the runs' files (see
 # sdm_dolfinx/paper/): `make figures` runs the full study into output/study (81 runs, about

@@ -28,10 +28,11 @@ PAPER_RATE = 0.69
 #: the final time of the disc runs in the paper's program (its ``.param`` file: T = 0.02)
 PAPER_T = 0.02
 #: where the paper's meshes are looked for, in this order (the first folder holding them wins):
-#: ``$SDM_GETFEM_MESHES``, then ``../shared/data/getfem-disc-meshes`` beside the repository (they
-#: are GetFEM's, LGPL: not copied into this project; docs/disc_meshes.md says where to get them)
+#: ``$SDM_GETFEM_MESHES``, then ``shared/data/getfem-disc-meshes`` beside the repository or beside one
+#: of its parent folders (CI lays ``shared/`` beside its clone; they are GetFEM's, LGPL: not copied
+#: into this project; docs/disc_meshes.md says where to get them)
 PAPER_MESH_DIRS = (os.environ.get("SDM_GETFEM_MESHES"),
-                   Path(__file__).resolve().parents[2].parent / "shared" / "data" / "getfem-disc-meshes")
+                   *(p / "shared" / "data" / "getfem-disc-meshes" for p in Path(__file__).resolve().parents[3:]))
 
 #: the paper's program (GetFEM): the "regular simplices" mesh of the unit square, which is
 #: dolfinx's left_right diagonal pattern, and the midpoint scheme applied to the (U, V) system

@@ -19,9 +19,11 @@ from dolfinx import fem, mesh as dmesh
 
 from sdm_dolfinx import compat, simulate
 from sdm_dolfinx.problems import disc, disc_mesh
+from sdm_dolfinx.paper.design import PAPER_MESH_DIRS, paper_mesh_dir
 
 COMM = MPI.COMM_WORLD
-DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "getfem-disc-meshes"
+#: where sdm_dolfinx looks for them ($SDM_GETFEM_MESHES, then shared/ beside the checkout or a parent folder)
+DATA = paper_mesh_dir() or PAPER_MESH_DIRS[1]
 R, HEIGHT = 20.0, 10.0                     # the disc's defaults (mm): centre (0, 30), A at y = 10
 CY = R + HEIGHT
 #: the paper's Table 2, rows 1-4: P2 vector displacement dofs of GetFEM's meshes

@@ -25,9 +25,11 @@ from sdm_dolfinx.run.integrator import Integrator
 from sdm_dolfinx.method.pairs import PAIRS
 from sdm_dolfinx.problems import disc, membrane
 from sdm_dolfinx.run import plan
+from sdm_dolfinx.paper.design import PAPER_MESH_DIRS, paper_mesh_dir
 
 COMM = MPI.COMM_WORLD
-DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "getfem-disc-meshes"
+#: where sdm_dolfinx looks for them ($SDM_GETFEM_MESHES, then shared/ beside the checkout or a parent folder)
+DATA = paper_mesh_dir() or PAPER_MESH_DIRS[1]
 COARSEST = DATA / "disc_P2_h4.mesh"
 #: "no change": relative to the matrix's largest entry, well above round-off (~5e-15 measured)
 #: and far below the error of UFL's estimate on curved cells (2e-6 to 7e-6 measured)
