@@ -103,6 +103,7 @@ def test_top_level_help_names_every_command():
 
 
 @pytest.mark.skipif(COMM.size > 1, reason="runs every command's --help in child processes: serial only")
+@pytest.mark.slow
 def test_cli_reference_is_current():
     """docs/cli.md is exactly what scripts/gen_cli_doc.py makes from today's --help texts."""
     p = subprocess.run([sys.executable, str(ROOT / "scripts" / "gen_cli_doc.py"), "--check"], capture_output=True,

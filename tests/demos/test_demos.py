@@ -54,7 +54,7 @@ NOT_DEMOS = {
 }
 #: measured on the 2-core machine with CI=1: membrane 10 s, disc 12 s, ball 5-13 s, friction 7 s, bar 6 s, punch 9 s, indent 5 s,
 #: two_balls 31 s
-SLOW = {"membrane.py", "disc.py", "ball.py", "two_balls.py"}
+SLOW = {"membrane.py", "disc.py", "ball.py", "two_balls.py", "bowl.py", "friction.py"}
 MAGIC = {".png": b"\x89PNG\r\n\x1a\n", ".gif": b"GIF8"}
 
 

@@ -21,6 +21,7 @@ pytestmark = [pytest.mark.mpi, pytest.mark.skipif(COMM.size > 1, reason="starts 
 BALL_TEST = Path(__file__).resolve().parents[1] / "physics" / "test_ball.py"
 
 
+@pytest.mark.slow
 def test_three_ranks_agree_with_one():
     cmd = ["mpirun", "-n", "3", sys.executable, "-m", "mpi4py", "-m", "pytest", "-q", "-p", "no:cacheprovider",
            f"{BALL_TEST}::test_one_and_two_ranks_agree"]

@@ -113,6 +113,7 @@ def test_two_runs_started_at_once_into_a_new_folder(tmp_path):
 
 # ---------------------------------------------------------------------- item 4: full disc
 @serial_only
+@pytest.mark.slow
 def test_full_disc_fails_in_one_line_and_restarts_once_there_is_space(small_disc, tmp_path):
     """--out on a 2 MB tmpfs: one line ("no space left on device while writing ..."), exit
     status 1, run.json "failed"; every file is readable at the last good step. Once the

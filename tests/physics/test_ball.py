@@ -185,6 +185,7 @@ def test_energy_changes_by_the_work_of_the_multipliers():
 
 
 @SERIAL
+@pytest.mark.slow
 def test_p2p1_energy_through_the_impact_converges():
     """P2/P1, midpoint: the energy after the ball has left the plane approaches E^0 as dt -> 0
     (measured 3.5e-4, 1.3e-4, 2.9e-5 at dt = 4e-5, 2e-5, 1e-5: each halving must gain at least

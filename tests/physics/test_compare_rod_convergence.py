@@ -41,6 +41,7 @@ def _by_method(records):
     return out
 
 
+@pytest.mark.slow
 def test_every_method_converges_to_the_exact_displacement(records):
     slow = {}
     for method, rows in _by_method(records).items():

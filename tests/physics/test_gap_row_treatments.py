@@ -89,8 +89,9 @@ def test_penalty_springs_in_series_with_the_weighted_gap(pair):
     assert delta == pytest.approx(force / (epsilon * W), rel=1e-2)
 
 
-@pytest.mark.parametrize("contact,vi_solver", [("exact", "ssn"), ("penalty", "ssn"), ("nitsche", "ssn"),
-                                               ("exact", "vinewtonrsls")])
+@pytest.mark.parametrize("contact,vi_solver", [("exact", "ssn"), ("penalty", "ssn"),
+                                               pytest.param("nitsche", "ssn", marks=pytest.mark.slow),
+                                               pytest.param("exact", "vinewtonrsls", marks=pytest.mark.slow)])
 def test_a_disc_in_a_bowl_swings_with_the_pendulum_period_under_every_treatment(contact, vi_solver):
     spec = load_file(BOWL)
     p = spec.problem(COMM)

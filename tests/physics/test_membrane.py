@@ -57,7 +57,8 @@ def test_backward_euler_energy_never_increases(pair):
     assert E[-1] < E[0]                                  # and it does lose energy at impact
 
 
-@pytest.mark.parametrize("pair,mass", [("P1+/P0", None), ("P2/P1", "lumped"), ("P2/P1", "consistent"),
+@pytest.mark.parametrize("pair,mass", [("P1+/P0", None), ("P2/P1", "lumped"),
+                                       pytest.param("P2/P1", "consistent", marks=pytest.mark.slow),
                                        ("P1+/P1", "consistent")])
 def test_constraint_holds_on_the_constrained_iterate(pair, mass):
     """U^{n+1/2} (midpoint) and U^{n+1} (backward Euler) satisfy u >= 0 at every vertex at
@@ -101,7 +102,8 @@ def test_free_fall_of_the_centre_matches_closed_form(pair):
     assert errs[2] < 0.01 * 0.02                          # 1 % of the initial height
 
 
-@pytest.mark.parametrize("pair,T,slope", [("P1+/P1", 0.45, 0.8), ("P2/P1", 0.3, 1.5)])
+@pytest.mark.parametrize("pair,T,slope", [pytest.param("P1+/P1", 0.45, 0.8, marks=pytest.mark.slow),
+                                          pytest.param("P2/P1", 0.3, 1.5, marks=pytest.mark.slow)])
 def test_lumped_and_consistent_C_converge_together(pair, T, slope):
     """P1 velocity: lumped C and consistent C (the (U, V) block system) are two
     discretisations of the same problem; refining h and dt together (dt/h fixed), the

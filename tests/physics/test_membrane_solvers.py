@@ -9,6 +9,7 @@ from sdm_dolfinx import StepError, compat, membrane, simulate
 COMM = MPI.COMM_WORLD
 
 
+@pytest.mark.slow
 def test_vi_solvers_agree():
     """The semi-smooth Newton (with each linear strategy) and SNES vinewtonrsls solve the
     same LCP: same time series to 1e-8 relative (solver tolerances 1e-10..1e-12)."""

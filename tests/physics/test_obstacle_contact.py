@@ -145,6 +145,7 @@ def test_an_inclined_plane_is_tilted_gravity(pair, constrain):
 
 
 @pytest.mark.parametrize("vi_solver", ["vinewtonrsls", "vinewtonssls"])
+@pytest.mark.slow
 def test_snes_vi_on_an_inclined_plane_is_snes_vi_under_tilted_gravity(vi_solver):
     kw = dict(pair="P1+/P0", dt=2e-5, T=4e-3)
     p0, _ = _block_on_slope(25.0, False)
@@ -159,6 +160,7 @@ def test_snes_vi_on_an_inclined_plane_is_snes_vi_under_tilted_gravity(vi_solver)
             assert _scale_diff(other[c], s1[c]) <= 1e-9, c
 
 
+@pytest.mark.slow
 def test_a_disc_in_a_bowl_swings_with_the_pendulum_period():
     spec = load_file(DEMOS / "bowl_problem.py")
     p = spec.problem(COMM)

@@ -112,6 +112,7 @@ def _ball(level, R2, dt=4e-5):
     return row
 
 
+@pytest.mark.slow
 def test_a_ball_dropped_on_a_rigid_sphere_against_hertz():
     R2 = 20.0
     row = _ball(2, R2)

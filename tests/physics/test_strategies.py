@@ -63,6 +63,7 @@ def small_schur(monkeypatch):
     monkeypatch.setattr(schur, "SCHUR_COST_MODEL", False)    # 5, not a threshold measured above it
 
 
+@pytest.mark.slow
 def test_membrane_strategies_agree():
     """P1+/P0, N = 8, 200 steps with contact from step 129 (up to 27 vertices in contact)."""
     kw = dict(pair="P1+/P0", dt=2e-3, T=0.4)
@@ -75,6 +76,7 @@ def test_membrane_strategies_agree():
     assert_same(series(membrane8, vi_solver="vinewtonrsls", **kw), ref, 1e-8, "vinewtonrsls")
 
 
+@pytest.mark.slow
 def test_schur_krylov_fallback_agrees(small_schur):
     """Newton systems with more than SCHUR_MAX_ACTIVE active constraints use CG."""
     kw = dict(pair="P1+/P0", dt=2e-3, T=0.4)
@@ -83,6 +85,7 @@ def test_schur_krylov_fallback_agrees(small_schur):
     assert_same(ts, ref, DIRECT_RTOL, "schur with CG fallback")
 
 
+@pytest.mark.slow
 def test_consistent_block_strategies_agree():
     """The (U, V) block system (symmetric indefinite): LU-based Schur and GMRES variants."""
     kw = dict(pair="P2/P1", dt=2e-3, T=0.4, mass="consistent")
@@ -91,6 +94,7 @@ def test_consistent_block_strategies_agree():
         assert_same(series(membrane8, linear=lin, **kw), ref, DIRECT_RTOL, lin)
 
 
+@pytest.mark.slow
 def test_augmented_route_agrees(monkeypatch):
     """P2/P1 through the augmented factorisation (used from 20k dofs) gives K's solution."""
     kw = dict(pair="P2/P1", dt=2e-4, T=0.02)

@@ -164,6 +164,7 @@ def test_non_matching_faces_keep_the_energy(dt):
 
 
 @pytest.mark.mpi
+@pytest.mark.slow
 def test_two_balls_head_on_are_one_ball_on_its_plane():
     from sdm_dolfinx.problems import ball
     kw = dict(pair="P2/P1", dt=4e-5, T=5e-3)
@@ -179,6 +180,7 @@ def test_two_balls_head_on_are_one_ball_on_its_plane():
 
 
 @pytest.mark.mpi
+@pytest.mark.slow
 def test_unequal_balls_meet_hertz_and_keep_their_momentum():
     dt, v = 3e-5, 100.0
     p = two_balls.problem(COMM, level=1, R2=10.0, E2=40.0, rho2=3e-9, v2=0.0)

@@ -103,6 +103,7 @@ def _oblique(mu, vt):
 
 
 @pytest.mark.mpi
+@pytest.mark.slow
 def test_oblique_balls_sliding_exchange_mu_times_the_normal_impulse():
     mu = 0.1
     ts, dt, m, v, J = _oblique(mu, 300.0)
@@ -119,6 +120,7 @@ def test_oblique_balls_sliding_exchange_mu_times_the_normal_impulse():
 
 
 @pytest.mark.mpi
+@pytest.mark.slow
 def test_oblique_balls_sticking_leave_rolling():
     mu, vt = 0.3, 100.0
     ts, dt, m, v, J = _oblique(mu, vt)
