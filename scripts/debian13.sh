@@ -46,13 +46,14 @@ INNER_SRC=/src/sdm_dolfinx
 # the venv tools: the chroot imports the checkout through PYTHONPATH). libopenblas0-serial: as on
 # the host, MUMPS gets OpenBLAS through Debian's alternatives instead of the reference BLAS.
 PACKAGES="python3-dolfinx python3-petsc4py python3-mpi4py python3-h5py python3-matplotlib
-python3-scipy python3-gmsh python3-pytest python3-pytest-xdist openmpi-bin libopenblas0-serial python3-venv"
+python3-scipy python3-gmsh python3-pytest python3-pytest-xdist openmpi-bin libopenblas0-serial python3-venv
+python3-adios2-serial"
 PACKAGES=$(echo $PACKAGES)        # one line, single spaces (it is also the stamp's content)
 # python3-venv: for the 0.11 venv. Its requirements, as the issue's user installs them: the wheel
 # pinned (a new one is a new dolfinx), the rest as pip resolves them against it.
 DOLFINX=${SDM_DOLFINX:-0.9}
 VENV=/opt/sdm-dolfinx011
-VENV_REQUIREMENTS="dolfinx-solver-real==0.11.0.post0 h5py scipy matplotlib pytest pytest-xdist gmsh"
+VENV_REQUIREMENTS="dolfinx-solver-real==0.11.0.post0 h5py scipy matplotlib pytest pytest-xdist gmsh adios2"
 case "$DOLFINX" in
   0.9) INNER_PATH=/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin ;;
   0.11) INNER_PATH=$VENV/bin:/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin ;;

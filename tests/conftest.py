@@ -16,7 +16,9 @@ if os.environ.get("PYTEST_XDIST_WORKER") and "SDM_ENV_BEFORE_MPI" in os.environ:
     # a pytest-xdist worker (make test's serial leg, ``-n 2``) inherits the controller's environment as
     # MPI_Init left it: the controller's singleton job (its PMIx server, its job id). A test's own mpirun
     # started with that environment exits 1 without a word: keep only what the controller started with.
-    _keep = set(os.environ["SDM_ENV_BEFORE_MPI"].split(","))
+    # (once: a pytest that a test starts under mpirun inherits the worker's variables, and must keep
+    # the ones its own launcher set)
+    _keep = set(os.environ.pop("SDM_ENV_BEFORE_MPI").split(","))
     for _k in [k for k in os.environ if k.startswith(_MPI_PREFIXES) and k not in _keep]:
         del os.environ[_k]
 elif not os.environ.get("PYTEST_XDIST_WORKER"):

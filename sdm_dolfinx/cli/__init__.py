@@ -22,6 +22,8 @@ TOOLS = {
     "figures": ("sdm_dolfinx.cli.figures", "rerun the paper's studies (only what is missing) and regenerate its "
                                            "figures and Table 2"),
     "energy": ("sdm_dolfinx.cli.energy", "recompute a finished run's energy history from its state.h5"),
+    "vtx": ("sdm_dolfinx.cli.vtx", "a finished run's fields as VTX (ADIOS2) files, each in its own finite element "
+                                   "space (needs dolfinx with ADIOS2)"),
     "render": ("sdm_dolfinx.cli.render", "pictures and animations of a run from its files; ParaView-friendly XDMF"),
     "compare": ("sdm_dolfinx.cli.compare", "compare dynamic-contact methods on one problem over a grid of h and dt "
                                            "(metrics against the exact solution, figures, ranking)"),

@@ -138,3 +138,15 @@ def check_writable(path, what):
             pass
     except OSError as e:
         raise UsageError(f"cannot write {what} {path} (creating a file in {d} failed: {e.strerror or e})") from None
+
+
+def check_finished_run(folder, comm, files, doing):
+    """UsageError (one line) unless ``folder`` holds a finished run's ``files``: a run still writing
+    them (its lock held) is refused too, ``doing`` saying what waits for its end (collective)."""
+    from sdm_dolfinx.io.folder import lock_holder
+    holder = comm.bcast(lock_holder(folder) if comm.rank == 0 else None, root=0)
+    if holder is not None:          # its files are being written: state.h5 may be mid-write
+        raise UsageError(f"{folder} holds a run in progress ({holder}): wait for it to end, then {doing}")
+    for name in files:
+        if not (folder / name).exists():
+            raise UsageError(f"{folder} has no {name} (not the output folder of a run)")

@@ -12,11 +12,11 @@ from mpi4py import MPI
 
 import numpy as np
 
-from sdm_dolfinx.cli.common import Parser, UsageError, parse_or_help, report_usage_error, say_error
+from sdm_dolfinx.cli.common import (Parser, UsageError, check_finished_run, parse_or_help, report_usage_error,
+                                   say_error)
 from sdm_dolfinx.mpiutil import on_rank0
 from sdm_dolfinx.post import recompute_energy
 from sdm_dolfinx.io import PostprocessError
-from sdm_dolfinx.io.folder import lock_holder
 
 PROG = "python -m sdm_dolfinx energy"
 #: the files a run folder must hold
@@ -66,13 +66,7 @@ def main(argv=None):
         args = parse_or_help(build_parser(), argv, comm)
         if args is None:
             return 0
-        holder = comm.bcast(lock_holder(args.folder) if comm.rank == 0 else None, root=0)
-        if holder is not None:          # its files are being written: state.h5 may be mid-write
-            raise UsageError(f"{args.folder} holds a run in progress ({holder}): wait for it to end, then "
-                             f"recompute its energy")
-        for name in RUN_FILES:
-            if not (args.folder / name).exists():
-                raise UsageError(f"{args.folder} has no {name} (not the output folder of a run)")
+        check_finished_run(args.folder, comm, RUN_FILES, "recompute its energy")
         on_rank0(comm, check_folder, args.folder, wrap=UsageError)
     except UsageError as e:
         return report_usage_error(PROG, e, comm)

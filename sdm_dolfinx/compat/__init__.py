@@ -320,6 +320,26 @@ def interpolate_nonmatching(u_to, u_from, padding=1e-8):
     return True
 
 
+def dolfinx_version() -> str:
+    """dolfinx's version string ("0.5.2", "0.11.0.post0", ...)."""
+    return str(dolfinx.__version__)
+
+
+def has_vtx() -> bool:
+    """Whether this dolfinx writes VTX files (``dolfinx.io.VTXWriter``: built with ADIOS2). Debian 12's
+    0.5.2 is not; PyPI's wheel dolfinx-solver-real (0.11) is."""
+    from dolfinx import io
+    return bool(getattr(dolfinx.common, "has_adios2", False)) and hasattr(io, "VTXWriter")
+
+
+def vtx_writer(comm, path, functions):
+    """dolfinx's VTXWriter of ``functions`` (a Function or a list of Functions of one space) at ``path``
+    (a ``.bp`` folder): ``write(t)`` then ``close()``. The same positional call on 0.5-0.11 (0.8 added
+    keyword options: the engine, whether the mesh is written again at every step)."""
+    from dolfinx import io
+    return io.VTXWriter(comm, str(path), functions)
+
+
 def vtk_mesh(V):
     """(topology, cell types, points) of a Lagrange space for a VTK/pyvista grid (points =
     the dof coordinates, in dof order). ``create_vtk_mesh`` up to 0.6, ``vtk_mesh`` later."""

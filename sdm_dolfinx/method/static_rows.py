@@ -184,6 +184,12 @@ def _solve(d, Cs, cs, masks, b, pins, blocks=()):
     fix = np.concatenate([d.ddofs, pins]).astype(np.int64)
     x0 = K.createVecRight()
     x0.array[d.ddofs] = d.g.x.array[d.ddofs]
+    # MatZeroRowsColumns needs each row's diagonal entry in the sparsity (PETSc 3.25 refuses one the nest's
+    # conversion left out: "missing diagonal entry"): an explicit 0 added first
+    K.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+    for r in (k0 + fix).tolist():
+        K.setValue(r, r, 0.0, addv=PETSc.InsertMode.ADD_VALUES)
+    K.assemble()
     K.zeroRowsColumns((k0 + fix).astype(PETSc.IntType), 1.0, x0, rhs)
     reason = eq.lu_solve(K, rhs, sol)
     # the solve's residual, by block (forces, gaps) against its right-hand side's size: a nearly singular
