@@ -1,7 +1,8 @@
 """The same membrane run on two dolfinx versions gives the same time series.
 
-``make test-dolfinx09`` runs the paper's Fig. 2 case (P1+/P0, midpoint, N = 10,
-dt = 1e-3, T = 0.8) inside the dolfinx 0.9 chroot and on the host (dolfinx 0.5.2), on 1
+``make test-dolfinx09`` and ``make test-dolfinx011`` run the paper's Fig. 2 case (P1+/P0, midpoint,
+N = 10, dt = 1e-3, T = 0.8) inside the Debian 13 chroot (dolfinx 0.9, or 0.11 from PyPI's wheel with
+MUMPS instead of CHOLMOD and MPICH) and on the host (dolfinx 0.5.2), on 1
 and on 2 ranks, into ``SDM_VERSION_RUNS/{host,other}-np{1,2}``, and then runs this test on
 the host. Both versions assemble the same forms with the same quadrature and solve the
 same LCP with direct factorisations, so the series may differ only by round-off amplified
@@ -26,7 +27,7 @@ COLUMNS = ("energy", "kinetic", "potential", "u_probe", "lambda_probe")
 if not RUNS and os.environ.get("SDM_REQUIRE_VERSIONS") == "1":
     raise RuntimeError("SDM_REQUIRE_VERSIONS=1 but SDM_VERSION_RUNS is not set")
 pytestmark = [
-    pytest.mark.skipif(not RUNS, reason="needs the runs of two dolfinx versions (make test-dolfinx09)"),
+    pytest.mark.skipif(not RUNS, reason="needs the runs of two dolfinx versions (make test-dolfinx09, test-dolfinx011)"),
     pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="compares files: serial only"),
 ]
 
