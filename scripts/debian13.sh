@@ -318,7 +318,7 @@ print("dolfinx", dolfinx.__version__, "| basix", basix.__version__, "| ufl", ufl
 
 # The paper's Fig. 2 run (membrane P1+/P0, midpoint, N = 10, dt = 1e-3, T = 0.8) on 1 and $NP ranks
 # in the chroot and on the host (its .venv: dolfinx 0.5.2 on Debian 12), then
-# tests/integration/test_versions.py on the host compares the time series (1e-10 relative).
+# tests/integration/test_versions.py on the host compares the time series (1e-9 relative).
 compare_versions() {
   local vdir=output/versions-$DOLFINX np rc=0
   local run=(-m sdm_dolfinx membrane --pair P1+/P0 --scheme midpoint --N 10 --dt 1e-3 --T 0.8

@@ -6,8 +6,13 @@ MUMPS instead of CHOLMOD and MPICH) and on the host (dolfinx 0.5.2), on 1
 and on 2 ranks, into ``SDM_VERSION_RUNS/{host,other}-np{1,2}``, and then runs this test on
 the host. Both versions assemble the same forms with the same quadrature and solve the
 same LCP with direct factorisations, so the series may differ only by round-off amplified
-through 800 steps: we ask 1e-10 relative to each column's largest magnitude (measured:
-~1e-11). Without SDM_VERSION_RUNS (a plain ``make test``) there is nothing to compare
+through 800 steps: we ask 1e-9 relative to each column's largest magnitude. Measured against
+0.5.2: 0.9 ~1e-11 in every column; 0.11 (another BLAS, MUMPS instead of CHOLMOD, numpy 2) ~3e-11
+in the energies and 1.5e-10 in the centre's displacement, a difference of 7e-16 at step 1 that
+grows through the impacts to step 800 as round-off does (1 against 2 ranks of one version
+differ by 1e-11 to 4e-11; CHOLMOD against MUMPS on 0.5.2 by 5e-12), with the same active set at
+every step (below: at 99 % of them at least). 1e-9 is 6.7x the largest drift measured: a version difference
+beyond round-off (an element, an assembly, a solver) is what it guards against. Without SDM_VERSION_RUNS (a plain ``make test``) there is nothing to compare
 with and the test is skipped; SDM_REQUIRE_VERSIONS=1 makes that a failure.
 """
 import csv
@@ -21,7 +26,7 @@ import numpy as np
 import pytest
 
 RUNS = os.environ.get("SDM_VERSION_RUNS")
-RTOL = 1e-10
+RTOL = 1e-9
 COLUMNS = ("energy", "kinetic", "potential", "u_probe", "lambda_probe")
 
 if not RUNS and os.environ.get("SDM_REQUIRE_VERSIONS") == "1":
