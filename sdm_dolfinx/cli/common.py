@@ -150,3 +150,19 @@ def check_finished_run(folder, comm, files, doing):
     for name in files:
         if not (folder / name).exists():
             raise UsageError(f"{folder} has no {name} (not the output folder of a run)")
+
+
+def parse_run_folder(prog, parser, argv, comm, files, doing, check_folder):
+    """A command on a finished run's folder (``energy``, ``vtx``): its parsed arguments (``args.folder``)
+    once :func:`check_finished_run` and ``check_folder(folder)`` (rank 0) have passed, or the exit
+    status to return: 0 after ``--help``, 2 after a one-line refusal (collective)."""
+    from sdm_dolfinx.mpiutil import on_rank0
+    try:
+        args = parse_or_help(parser, argv, comm)
+        if args is None:
+            return 0
+        check_finished_run(args.folder, comm, files, doing)
+        on_rank0(comm, check_folder, args.folder, wrap=UsageError)
+    except UsageError as e:
+        return report_usage_error(prog, e, comm)
+    return args

@@ -12,9 +12,7 @@ from mpi4py import MPI
 
 import numpy as np
 
-from sdm_dolfinx.cli.common import (Parser, UsageError, check_finished_run, parse_or_help, report_usage_error,
-                                   say_error)
-from sdm_dolfinx.mpiutil import on_rank0
+from sdm_dolfinx.cli.common import Parser, UsageError, parse_run_folder, say_error
 from sdm_dolfinx.post import recompute_energy
 from sdm_dolfinx.io import PostprocessError
 
@@ -62,14 +60,9 @@ def main(argv=None):
     """``python -m sdm_dolfinx energy DIR``: returns the exit status (0, 2 bad input)."""
     comm = MPI.COMM_WORLD
     argv = sys.argv[1:] if argv is None else list(argv)
-    try:
-        args = parse_or_help(build_parser(), argv, comm)
-        if args is None:
-            return 0
-        check_finished_run(args.folder, comm, RUN_FILES, "recompute its energy")
-        on_rank0(comm, check_folder, args.folder, wrap=UsageError)
-    except UsageError as e:
-        return report_usage_error(PROG, e, comm)
+    args = parse_run_folder(PROG, build_parser(), argv, comm, RUN_FILES, "recompute its energy", check_folder)
+    if isinstance(args, int):
+        return args
     try:
         res = recompute_energy(args.folder, comm)
     except PostprocessError as e:
