@@ -49,8 +49,10 @@ PACKAGES="python3-dolfinx python3-petsc4py python3-mpi4py python3-h5py python3-m
 python3-scipy python3-gmsh python3-pytest python3-pytest-xdist openmpi-bin libopenblas0-serial python3-venv
 python3-adios2-serial"
 PACKAGES=$(echo $PACKAGES)        # one line, single spaces (it is also the stamp's content)
-# python3-venv: for the 0.11 venv. Its requirements, as the issue's user installs them: the wheel
-# pinned (a new one is a new dolfinx), the rest as pip resolves them against it.
+# python3-venv: for the 0.11 venv; python3-adios2-serial: ADIOS2's Python bindings, which read the VTX
+# files back (tests/cli/test_vtx_command.py). The venv's requirements, as a user of the wheel installs
+# them: the wheel pinned (a new one is a new dolfinx), the rest as pip resolves them against it (adios2:
+# the same reading, never imported beside dolfinx).
 DOLFINX=${SDM_DOLFINX:-0.9}
 VENV=/opt/sdm-dolfinx011
 VENV_REQUIREMENTS="dolfinx-solver-real==0.11.0.post0 h5py scipy matplotlib pytest pytest-xdist gmsh adios2"
