@@ -21,6 +21,12 @@ rho c v / 2 (half the stress of a bar striking a rigid wall, rho c v). Head on (
 behaves as one bar striking a rigid wall at the plane of symmetry x = 0 (demos/bar_problem.py with
 the same d), at the stress rho c v.
 
+``--passes 2``: the node-to-surface contact in both directions, a second pair ``back`` holding bar 2's
+end vertices outside bar 1's end face (the two passes: neither face can sink into the other between
+its vertices). On matching faces (the default mesh) each row of the second pass repeats one of the
+first (the same two vertices, the opposite normal): the run is the one-pass run to the solver's
+tolerance, the force split equally between the two pairs (docs/contact.md, "Two passes").
+
 The time series has each bar's columns (``bodies``): ``momentum_striker_x``, ``kinetic_striker``,
 ``elastic_striker`` and the struck bar's, and the pair's ``contact_force_ends``.
 
@@ -61,7 +67,7 @@ def two_bars_mesh(comm, L, H, d, Nx, Ny, Ny1=None):
     return create_mesh(comm, cells, x, domain)
 
 
-def build(comm, L, H, E, rho, v, v2, Nx, Ny, Ny1, gap_time):
+def build(comm, L, H, E, rho, v, v2, Nx, Ny, Ny1, gap_time, passes):
     """The two bars for declared values (see PARAMS)."""
     c = np.sqrt(E / rho)
     t0 = 0.1 * 2.0 * L / c if gap_time is None else gap_time
@@ -78,9 +84,13 @@ def build(comm, L, H, E, rho, v, v2, Nx, Ny, Ny1, gap_time):
         """The cells of the bar on the ``side`` (-1, +1) of x = 0."""
         return cells_where(lambda c: side * c[0] > 0)
 
-    slave = np.sort(facets(-d, -1)(msh)).astype(np.int32)
+    pairs = [ContactPair(slave=facets(-d, -1), master=facets(d, 1), name="ends")]
+    if passes == 2:
+        pairs.append(ContactPair(slave=facets(d, 1), master=facets(-d, -1), name="back"))
+    slave = np.concatenate([np.asarray(pair.slave(msh), dtype=np.int32) for pair in pairs])
+    slave = np.unique(slave)
     tags = dmesh.meshtags(msh, fdim, slave, np.full(len(slave), 1, dtype=np.int32))
-    ds_slave = ufl.Measure("ds", domain=msh, subdomain_data=tags)(1)
+    ds_slave = ufl.Measure("ds", domain=msh, subdomain_data=tags)(1)     # every pair's slave facets
     zero = fem.Constant(msh, PETSc.ScalarType((0.0, 0.0)))
     lame_mu = E / 2.0
 
@@ -94,7 +104,7 @@ def build(comm, L, H, E, rho, v, v2, Nx, Ny, Ny1, gap_time):
         u0=lambda x: np.zeros((2, x.shape[1])),
         v0=velocity,
         constraint_vertices=None, lower_bound=None,
-        contact_pairs=[ContactPair(slave=facets(-d, -1), master=facets(d, 1), name="ends")],
+        contact_pairs=pairs,
         constraint_component=0,
         constraint_measure=lambda q: q * ds_slave,
         probe=(-d, H / 2.0),                                       # the middle of the striker's end face
@@ -102,7 +112,7 @@ def build(comm, L, H, E, rho, v, v2, Nx, Ny, Ny1, gap_time):
         bodies=[Body("striker", side_cells(-1)), Body("struck", side_cells(1))],
         momentum_component=0,
         parameters={"L": L, "H": H, "E": E, "nu": 0.0, "rho": rho, "v": v, "v2": v2, "gap": 2.0 * d,
-                    "gap_time": t0, "Nx": Nx, "Ny": Ny, "Ny1": Ny if Ny1 is None else Ny1, "c": c,
+                    "gap_time": t0, "passes": passes, "Nx": Nx, "Ny": Ny, "Ny1": Ny if Ny1 is None else Ny1, "c": c,
                     "lame_lambda": 0.0, "lame_mu": lame_mu},
         units={"L": "mm", "H": "mm", "E": "N/mm^2", "rho": "t/mm^3", "v": "mm/s", "v2": "mm/s", "gap": "mm",
                "t": "s", "u_probe": "mm", "lambda_probe": "N/mm^2 (>= 0 compressive)",
@@ -121,6 +131,8 @@ PARAMS = (
     Param("Ny", 4, "cells across each bar", type=int, low=1),
     Param("Ny1", None, "cells across bar 1, the striker (default: Ny, bar 2's mirror image; another value: "
                        "non-matching contact faces)", type=int, low=1),
+    Param("passes", 1, "node-to-surface passes: 1 (bar 1's end vertices against bar 2's face) or 2 (and bar 2's "
+                       "against bar 1's)", type=int, low=1, high=2),
     Param("gap_time", None, "time at which the end faces meet (default: a tenth of 2L/c)", unit="s",
           type=float, low=0.0),
 )

@@ -162,3 +162,30 @@ def test_the_krylov_fallback_solves_the_same_step_as_the_cached_columns(kind):
     assert COMM.allreduce(float(np.max(np.abs(x4 - x0), initial=0.0)), op=MPI.MAX) <= 1e-9 * scale
     lscale = COMM.allreduce(float(np.max(np.abs(lam0), initial=0.0)), op=MPI.MAX)
     assert COMM.allreduce(float(np.max(np.abs(lam4 - lam0), initial=0.0)), op=MPI.MAX) <= 1e-9 * lscale
+
+
+def test_repeated_active_rows_split_their_force_equally_whatever_their_order():
+    """Two rows that are the same constraint (the two passes of a node-to-surface contact on matching
+    meshes) make S = G_A K^-1 G_A^T singular: the multipliers are the minimum-norm ones, each repeated
+    row taking its share equally, in any order of the rows; S mu = r holds."""
+    from sdm_dolfinx.solvers.gap_rows import active_multipliers
+    rng = np.random.default_rng(3)
+    A = rng.random((4, 4))
+    G = np.vstack([A[:3], A[1]])                          # row 3 repeats row 1
+    S = G @ np.linalg.inv(np.diag(2.0 + rng.random(4))) @ G.T
+    r = G @ rng.random(4)
+    mu = active_multipliers(S, r)
+    assert np.max(np.abs(S @ mu - r)) <= 1e-12 * np.max(np.abs(r))
+    assert mu[3] == pytest.approx(mu[1], rel=1e-12)
+    order = np.array([3, 0, 2, 1])
+    np.testing.assert_allclose(active_multipliers(S[np.ix_(order, order)], r[order]), mu[order], rtol=1e-12)
+    # independent rows: the one solution
+    np.testing.assert_allclose(active_multipliers(S[:3, :3], r[:3]), np.linalg.solve(S[:3, :3], r[:3]), rtol=1e-12)
+
+
+def test_repeated_active_rows_asking_for_different_gaps_are_refused():
+    from sdm_dolfinx.solvers.base import VIError
+    from sdm_dolfinx.solvers.gap_rows import active_multipliers
+    S = np.array([[2.0, 2.0], [2.0, 2.0]])
+    with pytest.raises(VIError, match="linearly dependent"):
+        active_multipliers(S, np.array([1.0, 1.5]))
