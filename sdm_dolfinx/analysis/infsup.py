@@ -37,6 +37,7 @@ from mpi4py import MPI
 import numpy as np
 
 from sdm_dolfinx import compat
+from sdm_dolfinx.analysis.repeated_rows import distinct_rows
 from sdm_dolfinx.errors import SdmError
 from sdm_dolfinx.method.discretisation import Discretisation
 from sdm_dolfinx.method.pairs import get_pair
@@ -175,8 +176,12 @@ def measure(B, C, cidx, tol=TOL, dense_max=DENSE_MAX):
     import scipy.sparse as sp
     B = sp.csr_matrix(B)
     nH, nW = B.shape
+    repeated = 0
     if sp.issparse(cidx):           # general rows G (the weighted gap, obstacles' normals)
         cidx = sp.csr_matrix(cidx)
+        keep = distinct_rows(cidx)
+        repeated = cidx.shape[0] - len(keep)
+        cidx = cidx[keep] if repeated else cidx
         Ng = cidx.shape[0]
     else:                           # unit rows at the constrained dofs
         cidx = np.asarray(cidx, dtype=np.int64)
@@ -195,6 +200,11 @@ def measure(B, C, cidx, tol=TOL, dense_max=DENSE_MAX):
     r["tolerance"] = tol
     r["seconds"] = time.perf_counter() - t0
     r["verdict"], r["reason"] = _verdict(r, tol)
+    r["repeated_rows"] = repeated
+    if repeated:
+        r["reason"] += (f"; measured on the N_g = {Ng} distinct rows: {repeated} more repeat some of them (the same "
+                        f"constraint twice, e.g. the two passes of a node-to-surface contact where vertices meet: "
+                        f"the constraint set is the same, their force splits)")
     return r
 
 

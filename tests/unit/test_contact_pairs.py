@@ -177,6 +177,23 @@ def test_inspect_measures_condition_7_on_the_rows_between_bodies(pair, well_pose
     assert (r["beta"] > 1e-3) == well_posed and r["verdict"] == ("well-posed" if well_posed else "ill-posed")
 
 
+@pytest.mark.mpi
+def test_inspect_measures_two_passes_on_their_distinct_rows():
+    """Two passes on matching faces: every second-pass row repeats a first-pass one (the same unit vector),
+    so G P_F G^T is singular; the constraint set is the one pass's, and the inspector measures it on the
+    distinct rows: the one-pass beta exactly, the repeated rows counted. A row and its negative are two
+    bounds, not a repeat."""
+    from sdm_dolfinx.analysis.infsup import inspect
+    from sdm_dolfinx.analysis.repeated_rows import distinct_rows
+    one, two = inspect(_bars(), "P2/P1"), inspect(_bars(passes=2), "P2/P1")
+    assert two["repeated_rows"] == 3 and two["N_g"] == one["N_g"] == 3 and one["repeated_rows"] == 0
+    assert two["beta"] == pytest.approx(one["beta"], rel=1e-10) and two["verdict"] == "well-posed"
+    assert "3 more repeat" in two["reason"]
+    import scipy.sparse as sp
+    G = sp.csr_matrix(np.array([[1.0, -1.0, 0.0], [2.0, -2.0, 0.0], [-1.0, 1.0, 0.0], [1.0, -1.0, 1e-3]]))
+    np.testing.assert_array_equal(distinct_rows(G), [0, 2, 3])
+
+
 def test_a_point_beyond_the_rim_of_the_master_has_no_row():
     """The master face of the bars ends at y = 0 and y = H: a point above its top corner, off to the side by
     more than the rim tolerance, is beyond the surface (no normal: its row holds nothing, its gap is its
