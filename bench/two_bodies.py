@@ -5,9 +5,10 @@ the size of ball level 4. Each case runs two equal balls head on (the built-in t
 midpoint, ``linear="schur"``) from 4 um apart each (contact from the first steps), 6 steps, in a fresh
 process, the median of 3 runs; per case: the mean time of a step with active contact (the Integrator's
 ``step``: the set-up excluded, the steps that compute the columns of newly active rows included), the
-time of the rows (:meth:`BodyRows.rows`: the master surface's displacements gathered, every slave vertex
-projected, the rows assembled) and of the end-of-step gap (a second projection), and their share of the
-steps. ``--friction``: ball 1 also moves across at 100 mm/s (an oblique collision) under Coulomb friction
+time of the rows (:meth:`BodyRows.rows`: the deformed master facets near each rank's slave vertices
+sent to it, every slave vertex projected, the rows assembled) and of the end-of-step gap (a second projection), and their share of the
+steps, and the most facets a rank received in the last projection (the whole surface before the
+facets were sent by bounding boxes: "facets sent to a rank"). ``--friction``: ball 1 also moves across at 100 mm/s (an oblique collision) under Coulomb friction
 (mu = 0.3): the rows carry their tangential rows too, and the frictional solver gathers every rank's rows
 into one matrix every step (``NodeFrames.set_rows``: its time is the column "rows matrix").
 
@@ -71,11 +72,13 @@ def one(level, friction=False):
         times.append(time.perf_counter() - s)
         actives.append(int(info["n_active"]))
     contact = [t for t, a in zip(times, actives) if a > 0]
+    surface = d.body_rows.surfaces[0]
+    received = comm.allreduce(surface.received, op=MPI.MAX)          # the last projection's, the most a rank got
     integ.destroy()
     return {"level": level, "ranks": comm.size, "friction": bool(friction), "matrix_s": spent["matrix"], "dim_W": d.dims()["dim_W"], "slave_vertices": d.num_constraints,
             "master_facets": len(d.body_rows.surfaces[0].cells), "setup_s": setup, "step_s": times,
             "n_active": actives, "contact_step_s": float(np.mean(contact)) if contact else None,
-            "rows_s": spent["rows"], "gap_s": spent["gap"]}
+            "rows_s": spent["rows"], "gap_s": spent["gap"], "facets_received": received}
 
 
 def run_fresh(level, ranks, friction=False):
@@ -85,12 +88,13 @@ def run_fresh(level, ranks, friction=False):
 
 def table(results):
     lines = ["| level | ranks | friction | dim W^h | slave vertices | master facets | active (last step) | "
-             "contact step (s) | rows (s/step) | rows matrix (s/step) | end gap (s/step) | search and rows / step | "
-             "set-up (s) |", "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "facets sent to a rank | contact step (s) | rows (s/step) | rows matrix (s/step) | end gap (s/step) | "
+             "search and rows / step | set-up (s) |", "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in sorted(results, key=lambda r: (r["level"], r["ranks"], r.get("friction", False))):
         steps, mat = sum(r["step_s"]), r.get("matrix_s", 0.0)
         lines.append(f"| {r['level']} | {r['ranks']} | {'Coulomb' if r.get('friction') else '-'} | {r['dim_W']} | "
-                     f"{r['slave_vertices']} | {r['master_facets']} | {r['n_active'][-1]} | {r['contact_step_s']:.4f} | "
+                     f"{r['slave_vertices']} | {r['master_facets']} | {r['n_active'][-1]} | {r.get('facets_received', '-')} | "
+                     f"{r['contact_step_s']:.4f} | "
                      f"{r['rows_s'] / STEPS:.4f} | {mat / STEPS:.4f} | {r['gap_s'] / STEPS:.4f} | "
                      f"{(r['rows_s'] + r['gap_s'] + mat) / steps:.1%} | {r['setup_s']:.1f} |")
     return "\n".join(lines)

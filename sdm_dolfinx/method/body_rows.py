@@ -157,11 +157,11 @@ class BodyRows:
         at reference ``x`` (3, n) with dofs ``dofs`` (n, gdim) in the state ``u`` (collective). With ``key``, the
         answer for the same points and the same values of u there and on the master surfaces is kept: a
         step's rows, its gap and the time series' gaps project the same state (decided on every rank)."""
-        vals = [s.displacements(u) for s in self.surfaces]     # collective: every rank, every pair
+        owned = [s.owned_values(u) for s in self.surfaces]      # every rank's part: the state on the surfaces
         mine = np.array(u[dofs]) if len(dofs) else np.zeros((0, self.gdim))
         kept = self._kept.get(key) if key is not None else None
         same = kept is not None and np.array_equal(kept[0], mine) and all(
-            np.array_equal(a, b) for a, b in zip(kept[1], vals))
+            np.array_equal(a, b) for a, b in zip(kept[1], owned))
         if self.comm.allreduce(bool(same) if key is not None else False, op=MPI.LAND):
             assert kept is not None
             return kept[2]
@@ -171,14 +171,15 @@ class BodyRows:
         phi, best, found = np.full(len(y), np.inf), np.full(len(y), -1), []
         for k, s in enumerate(self.surfaces):
             sel = np.flatnonzero(member[k])
-            ph, n, el, xi = s.project(y[sel], vals[k])
+            vals, near = s.nearby(u, y[sel])                   # collective: every rank, every pair
+            ph, n, el, xi = s.project(y[sel], vals, near)
             closer = ph < phi[sel]
             phi[sel[closer]], best[sel[closer]] = ph[closer], k
-            found.append((sel, n, el, xi, vals[k]))
+            found.append((sel, n, el, xi, vals))
         out = phi, [(sel[best[sel] == k], *(a[best[sel] == k] for a in (n, el, xi)), v)
                     for k, (sel, n, el, xi, v) in enumerate(found)]
         if key is not None:
-            self._kept[key] = (mine, vals, out)
+            self._kept[key] = (mine, owned, out)
         return out
 
     def phi(self, u: Array, t: float = 0.0, boundary: bool = False) -> Array:

@@ -2,12 +2,22 @@
 facets and their vertices' dofs, gathered on every rank, and the closest-point projection of slave
 points on the deformed surface.
 
-**What is gathered.** Each rank sends, for its master facets (exterior facets belong to the one rank
-holding their cell), the facet's vertex coordinates and the global block numbers of W^h's nodes at
-its vertices. Every rank then holds the whole master surface: an allgather of O(master facets)
-numbers once per run, and the master vertices' displacements once per step (an allreduce of gdim
-numbers per master vertex). A rank needing only the facets near its own slave points (bounding boxes
-first) is the scalable version of this, not built yet.
+**What is gathered.** Once per run each rank sends, for its master facets (exterior facets belong to
+the rank holding their cell: the facet's owner), the facet's reference vertex coordinates and the
+global block numbers of W^h's nodes at its vertices: every rank holds the surface's reference
+geometry (an allgather of O(master facets) numbers), from which the vertex normals and the rim are
+computed. **Per projection** a rank gets the deformed facets near its own slave points only
+(:meth:`MasterSurface.nearby`): the facets' owners update their vertices' displacements from the
+neighbouring ranks (one halo exchange of W^h), every rank's box of its points is allgathered (6
+numbers a rank), and each owner sends each rank the facets whose deformed bounding box meets that
+box grown by the reach r (an alltoall of the facets' numbers and vertex displacements, nv (1 + gdim)
+numbers a facet); then r is checked (an allreduce of one number): the search below gives the
+answer of the whole surface when every point's CANDIDATES-th nearest facet centroid among those
+received is within r (every facet that can be among its nearest, or nearer than its first answer,
+was received: its first answer is within that distance, and the exact search looks no farther); if
+not, r grows to the largest such distance and the facets are sent again, which then holds (where a
+rank got fewer than CANDIDATES facets, r first doubles and reaches past the surface's bounding box).
+r starts each projection from the last one's need (times 1.25), so in a steady contact one round does.
 
 **The master held at its vertices.** The deformed master facet is the simplex of its deformed vertices
 x_v + u_v (P2's mid-edge nodes do not bend it: its chord), and the master displacement at a point of
@@ -38,6 +48,7 @@ from mpi4py import MPI
 
 import numpy as np
 import numpy.typing as npt
+from dolfinx import fem
 from dolfinx import mesh as dmesh
 from scipy.spatial import cKDTree
 
@@ -53,6 +64,8 @@ Array = npt.NDArray[np.float64]
 #: can be nearer) when it is within NEAR sizes of the best of them
 CANDIDATES = 8
 NEAR = 2.0
+#: the reach of the next projection: the last one's need times this
+REACH_GROWTH = 1.25
 #: a slave point whose closest point is on the surface's rim and which lies more than this many facet sizes
 #: off to the side of it is beyond the surface (no row)
 RIM = 1e-2
@@ -139,12 +152,21 @@ class MasterSurface:
             wrong = f"contact pair {name!r}: master names {int(np.sum(~np.isin(facets, exterior)))} interior facets"
         facets = facets[np.isin(facets, exterior)] if wrong is None else np.zeros(0, dtype=np.int64)
         try:
-            corners, blocks = self._local(d, facets.astype(np.int32), fdim, nv)
+            corners, blocks, local_blocks = self._local(d, facets.astype(np.int32), fdim, nv)
         except DiscretisationError as e:
             corners, blocks, wrong = np.zeros((0, nv, 3)), np.zeros((0, nv), dtype=np.int64), str(e)
+            local_blocks = blocks
         found = [m for m in comm.allgather(wrong) if m]
         if found:
             raise DiscretisationError(f"{label(p)}: {found[0]}")
+        counts = comm.allgather(len(corners))
+        #: this rank's facets (indices into the gathered ones), their reference corners and the local dofs
+        #: of W^h (owned or ghost) at their vertices (n, nv, gdim)
+        self._mine = sum(counts[:comm.rank]) + np.arange(counts[comm.rank], dtype=np.int64)
+        self._mine_corners = corners.copy()
+        self._mine_dofs = (np.asarray(local_blocks, dtype=np.int64)[..., None] * bs + np.arange(self.gdim))
+        self._field = fem.Function(d.W)         # this rank's values with its ghosts' (a halo exchange)
+        self._owned = W.dofmap.index_map.size_local * bs
         corners = np.concatenate(comm.allgather(corners))
         self.blocks = np.concatenate(comm.allgather(blocks)).astype(np.int64)
         if not len(corners):
@@ -161,16 +183,23 @@ class MasterSurface:
         self.size = float(np.linalg.norm(self.points.max(axis=0) - self.points.min(axis=0)))
         self.vertex_normals = _unit(pseudo_normals(self.points, self.cells, facet_normals(corners))[0])
         self.rim = _rim(self.cells)
+        self._k = min(CANDIDATES, len(self.cells))
+        #: the reference facets' largest centroid-to-vertex distance
+        self._rmax = float(np.max(np.linalg.norm(corners - corners.mean(axis=1, keepdims=True), axis=2)))
+        #: the reach of the next projection (0: found by the first one's check)
+        self.reach = 0.0
+        #: the facets sent to this rank and the rounds taken by the last :meth:`nearby` (a bench's numbers)
+        self.received, self.rounds = 0, 0
 
     @staticmethod
-    def _local(d: Any, facets: npt.NDArray[np.int32], fdim: int, nv: int) -> tuple[Array, Array]:
-        """(corners (nf, nv, 3) outward-ordered, the global blocks (nf, nv) of W^h's nodes at them) of this
-        rank's facets. A corner's node is found among the facet's closure dofs in its cell (the element's
+    def _local(d: Any, facets: npt.NDArray[np.int32], fdim: int, nv: int) -> tuple[Array, Array, Array]:
+        """(corners (nf, nv, 3) outward-ordered, the global blocks (nf, nv) of W^h's nodes at them, their
+        local blocks) of this rank's facets. A corner's node is found among the facet's closure dofs in its cell (the element's
         dof layout) by its coordinates, so that a curved (P2-geometry) facet is taken as a straight one."""
         msh, W = d.problem.mesh, d.W
         tdim = msh.topology.dim
         if not facets.size:
-            return np.zeros((0, nv, 3)), np.zeros((0, nv), dtype=np.int64)
+            return np.zeros((0, nv, 3)), np.zeros((0, nv), dtype=np.int64), np.zeros((0, nv), dtype=np.int64)
         msh.topology.create_connectivity(fdim, 0)
         msh.topology.create_connectivity(tdim, fdim)
         verts = msh.topology.connectivity(fdim, 0).array.reshape(-1, nv)[facets]
@@ -194,15 +223,69 @@ class MasterSurface:
             raise DiscretisationError("W^h has no node at a master facet's vertex: not built")
         vblocks = np.take_along_axis(blocks, which, axis=1)
         glob = W.dofmap.index_map.local_to_global(vblocks.reshape(-1).astype(np.int32)).reshape(vblocks.shape)
-        return corners, np.asarray(glob, dtype=np.int64)
+        return corners, np.asarray(glob, dtype=np.int64), vblocks
 
     # ---------------------------------------------------------------- per state
     def displacements(self, u: Array) -> Array:
-        """The master dofs' values (len(dofs),) of the owned array ``u`` of W^h, on every rank (collective)."""
+        """The master dofs' values (len(dofs),) of the owned array ``u`` of W^h, every one on every rank
+        (collective: an allreduce of the whole surface's, the reference :meth:`nearby` is checked against)."""
         vals = np.zeros(len(self.dofs))
         vals[self._own] = u[self._local_dofs]
         self.comm.Allreduce(MPI.IN_PLACE, vals, op=MPI.SUM)
         return vals
+
+    def owned_values(self, u: Array) -> Array:
+        """The values of the owned array ``u`` of W^h at the master dofs this rank owns (not collective)."""
+        return np.asarray(u[self._local_dofs])
+
+    def nearby(self, u: Array, y: Array) -> tuple[Array, npt.NDArray[np.int64]]:
+        """(the master dofs' values (len(dofs),), set at the facets received and 0 elsewhere; those facets)
+        for projecting this rank's points y (m, 3) in the state ``u`` (the owned array of W^h): the deformed
+        facets near them, sent by their owners (see the module; collective)."""
+        comm = self.comm
+        f = self._field.x.array
+        f[:self._owned] = u[:self._owned]
+        self._field.x.scatter_forward()
+        mine_vals = f[self._mine_dofs]                                       # (n, nv, gdim)
+        cur = self._mine_corners.copy()
+        cur[..., :self.gdim] += mine_vals
+        lo, hi = cur.min(axis=1), cur.max(axis=1)
+        both = comm.allgather(((y.min(axis=0), y.max(axis=0)) if len(y) else None,
+                               (lo.min(axis=0, initial=np.inf), hi.max(axis=0, initial=-np.inf))))
+        boxes = [b for b, _ in both]
+        surface = (np.min([m[0] for _, m in both], axis=0), np.max([m[1] for _, m in both], axis=0))
+        slack = 1e-9 * self.size
+        reach, rounds = self.reach, 0
+        while True:
+            rounds += 1
+            send = []
+            for box in boxes:
+                if box is None:
+                    send.append(np.zeros(0, dtype=np.int64))
+                    continue
+                meets = np.all((lo <= box[1] + reach) & (hi >= box[0] - reach), axis=1)
+                send.append(np.flatnonzero(meets))
+            got = comm.alltoall([(self._mine[sel], mine_vals[sel]) for sel in send])
+            facets = np.concatenate([g[0] for g in got]).astype(np.int64)
+            values = np.concatenate([g[1] for g in got]) if facets.size else np.zeros((0,) + mine_vals.shape[1:])
+            need = 0.0
+            if len(y) and len(facets) >= self._k:      # the distance to each point's k-th nearest centroid
+                pts = self.points[self.cells[facets]]
+                pts[..., :self.gdim] += values
+                dist = cKDTree(pts.mean(axis=1)).query(y, k=self._k)[0]
+                need = float(np.max(dist.reshape(len(y), -1)[:, -1]))
+            elif len(y):                # too few facets to tell: at least twice as far, and past the surface's box
+                apart = np.maximum(np.maximum(surface[0] - y.max(axis=0), y.min(axis=0) - surface[1]), 0.0)
+                need = max(2.0 * reach, float(np.linalg.norm(apart)) + 2.0 * self._rmax)
+            need = comm.allreduce(need, op=MPI.MAX)
+            if need <= reach:
+                break
+            reach = need * (1.0 + 1e-9) + slack
+        self.reach = need * REACH_GROWTH + slack
+        self.received, self.rounds = len(facets), rounds
+        vals = np.zeros(len(self.dofs))
+        vals[self.at[facets]] = values
+        return vals, facets
 
     def _closest(self, cur: Array, y: Array) -> tuple[Array, Array]:
         """(closest points (m, 3), facets (m,)) of the points y on the deformed facets ``cur``: the best of
@@ -232,17 +315,22 @@ class MasterSurface:
             q[near], element[near], _ = _best(yn, np.concatenate(point), np.concatenate(facet), cur)
         return q, element
 
-    def project(self, y: Array, vals: Array) -> tuple[Array, Array, Array, Array]:
+    def project(self, y: Array, vals: Array,
+                facets: npt.NDArray[np.int64] | None = None) -> tuple[Array, Array, Array, Array]:
         """For the points y (m, 3), with the master dofs' values ``vals``: (signed distances phi (m,), unit
         normals n (m, 3), the closest facets (m,), the barycentric coordinates xi (m, nv) of the closest
-        points: the master vertices' weights) on the deformed surface (see the module)."""
-        points = self.points.copy()
-        points[self.cells, :self.gdim] += vals[self.at]             # shared corners: the same node's values
+        points: the master vertices' weights) on the deformed surface (see the module), among ``facets``
+        (default: every facet)."""
         if len(y) == 0:
             return np.zeros(0), np.zeros((0, 3)), np.zeros(0, dtype=np.int64), np.zeros((0, self.cells.shape[1]))
-        cur = points[self.cells]
-        q, element = self._closest(cur, y)
-        xi = np.clip(barycentric(q, cur[element]), 0.0, 1.0)
+        among = np.arange(len(self.cells)) if facets is None else np.asarray(facets, dtype=np.int64)
+        if not len(among):
+            raise DiscretisationError("no master facet received for a slave point (internal error)")
+        cur = self.points[self.cells[among]]
+        cur[..., :self.gdim] += vals[self.at[among]]
+        q, local = self._closest(cur, y)
+        element = among[local]
+        xi = np.clip(barycentric(q, cur[local]), 0.0, 1.0)
         xi /= xi.sum(axis=1, keepdims=True)
         n = _unit(np.einsum("nv,nvk->nk", xi, self.vertex_normals[self.cells[element]]))
         r = y - q
@@ -252,7 +340,7 @@ class MasterSurface:
         on_rim = np.any((xi < 1e-12) & self.rim[element], axis=1) if xi.shape[1] == 3 else \
             np.any((xi > 1.0 - 1e-12) & self.rim[element][:, ::-1], axis=1)
         lateral = np.linalg.norm(r - phi[:, None] * n, axis=1)
-        size = np.linalg.norm(cur[element, 1] - cur[element, 0], axis=1)
+        size = np.linalg.norm(cur[local, 1] - cur[local, 0], axis=1)
         off = on_rim & (lateral > RIM * size)
         n[off], phi[off] = 0.0, np.linalg.norm(r[off], axis=1)
         return phi, n, element, xi

@@ -178,6 +178,52 @@ def test_inspect_measures_condition_7_on_the_rows_between_bodies(pair, well_pose
 
 
 @pytest.mark.mpi
+@pytest.mark.parametrize("which", ["discs", "balls"])
+def test_the_facets_near_a_ranks_points_project_as_the_whole_surface(which):
+    """MasterSurface.nearby sends a rank the deformed master facets near its own points only; the
+    projection on them is the projection on the whole surface (every rank holding it: displacements), for
+    points near the surface and far from it (several sizes off: the search's other branch), in a rough
+    deformed state, with a rank without points (discs on 2 ranks) or with (balls). A second projection of
+    the same points takes one round; a point at a vertex gets fewer facets than the surface's."""
+    if which == "discs":
+        p = load_file(DEMOS / "two_discs_problem.py").problem(COMM, level=1)
+    else:
+        from sdm_dolfinx.problems import two_balls
+        p = two_balls.problem(COMM, level=1)
+    d = Discretisation(p, "P2/P1")
+    s, gdim = d.body_rows.surfaces[0], p.shape[0]
+    rng = np.random.default_rng(11 + COMM.rank)
+    owned = d.W.dofmap.index_map.size_local * d.W.dofmap.index_map_bs
+    u = 2e-3 * s.size * rng.standard_normal(owned)
+    h = np.median(np.linalg.norm(s.points[s.cells[:, 1]] - s.points[s.cells[:, 0]], axis=1))
+    count = 0 if (which == "discs" and COMM.rank == 1) else 25
+    base = s.points[rng.integers(len(s.points), size=count)]
+    noise = np.zeros((count, 3))
+    noise[:, :gdim] = rng.standard_normal((count, gdim))
+    near = base + 0.3 * h * noise
+    far = base + np.linspace(2.0, 8.0, count)[:, None] * h * noise / np.maximum(
+        np.linalg.norm(noise, axis=1, keepdims=True), 1e-300)
+    whole = s.displacements(u)
+    for y in (near, np.vstack([near, far])):
+        phi, n, el, xi = s.project(y, whole)
+        vals, facets = s.nearby(u, y)
+        got = s.project(y, vals, facets)
+        np.testing.assert_allclose(got[0], phi, rtol=0.0, atol=1e-12 * s.size)
+        np.testing.assert_allclose(got[1], n, rtol=0.0, atol=1e-12)
+        # the same closest points (a point at a vertex or an edge may name either of its facets)
+        cur = s.points[s.cells] + np.pad(whole[s.at], ((0, 0), (0, 0), (0, 3 - gdim)))
+        np.testing.assert_allclose(np.einsum("pv,pvk->pk", got[3], cur[got[2]]),
+                                   np.einsum("pv,pvk->pk", xi, cur[el]), rtol=0.0, atol=1e-12 * s.size)
+        s.nearby(u, y)
+        assert s.rounds == 1
+    one = s.points[:1] if count else np.zeros((0, 3))          # a point at a vertex: a few facets sent
+    s.reach = 0.0                                              # (not the far points' reach)
+    s.nearby(u, one)
+    s.nearby(u, one)                                           # from the reach the first one found
+    assert s.rounds == 1 and ((0 < s.received < len(s.cells)) if count else s.received == 0)
+
+
+@pytest.mark.mpi
 def test_inspect_measures_two_passes_on_their_distinct_rows():
     """Two passes on matching faces: every second-pass row repeats a first-pass one (the same unit vector),
     so G P_F G^T is singular; the constraint set is the one pass's, and the inspector measures it on the
