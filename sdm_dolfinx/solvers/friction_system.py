@@ -39,6 +39,7 @@ from mpi4py import MPI
 import numpy as np
 
 from sdm_dolfinx.solvers.base import VIError
+from sdm_dolfinx.solvers.repeated_rows import solve_repeated
 from sdm_dolfinx.solvers.schur import SCHUR_COLUMN_MEMORY
 
 
@@ -215,11 +216,8 @@ class FrictionSystem:
         xc_known = self._x0c + ZJ @ aJ
         S = np.vstack(self.comm.allgather(W[fixed])) if len(gF) else np.zeros((0, 0))
         rhs, _ = self._gather(target[fixed] - xc_known[fixed])
-        try:
-            rF = np.linalg.solve(S, rhs) if len(gF) else np.zeros(0)
-        except np.linalg.LinAlgError:
-            raise VIError(f"the frictional Newton system on {len(gF)} fixed contact dofs is singular "
-                          "(Coulomb with a large friction coefficient?)") from None
+        rF = solve_repeated(S, rhs, f"the frictional Newton system on {len(gF)} fixed contact dofs is singular "
+                                    "(Coulomb with a large friction coefficient?)")
         xc = xc_known + W @ rF
         r = np.zeros(len(fixed))
         r[fixed] = rF[offF:offF + np.count_nonzero(fixed)]
@@ -268,11 +266,8 @@ class FrictionSystem:
         for part_rows, part_rhs, part_order in self.comm.allgather((np.vstack(rows), np.concatenate(rhs), order)):
             M[part_order] = part_rows
             y[part_order] = part_rhs
-        try:
-            rS = np.linalg.solve(M, y) if len(gS) else np.zeros(0)
-        except np.linalg.LinAlgError:
-            raise VIError(f"the 3-D frictional Newton system on {len(gS)} contact dofs is singular "
-                          "(Coulomb with a large friction coefficient?)") from None
+        rS = solve_repeated(M, y, f"the 3-D frictional Newton system on {len(gS)} contact dofs is singular "
+                                  "(Coulomb with a large friction coefficient?)")
         r = np.zeros(3 * m)
         r[on] = rS[pos[on]]
         self._last = r

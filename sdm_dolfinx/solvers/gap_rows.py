@@ -6,7 +6,6 @@ ids and coefficients given anew before every step among a fixed set of dofs: con
 Krylov fallback (:mod:`.gap_krylov`) beyond them."""
 from __future__ import annotations
 
-import warnings
 from typing import Optional
 
 from mpi4py import MPI
@@ -14,42 +13,21 @@ from petsc4py import PETSc
 
 import numpy as np
 import numpy.typing as npt
-import scipy.linalg
 
 from sdm_dolfinx.solvers import gap_krylov
 from sdm_dolfinx.solvers.base import VIError
 from sdm_dolfinx.solvers.factorisation import Factorisation
+from sdm_dolfinx.solvers.repeated_rows import solve_repeated
 from sdm_dolfinx.solvers.schur import SCHUR_COLUMN_MEMORY
 
 Array = npt.NDArray[np.float64]
-#: S's LU pivots below this fraction of its largest: active rows that repeat others (S singular to round-off)
-DEPENDENT_PIVOT = 1e-10
-#: such rows must agree with the rows they repeat to this much of the system's scale, else they contradict
-#: each other
-DEPENDENT_RTOL = 1e-8
-
-
 def active_multipliers(S: Array, r: Array) -> Array:
-    """The multipliers mu of S mu = r, S = G_A K^-1 G_A^T (the same on every rank). Active rows that repeat
-    others (two contact pairs holding the same two vertices against each other: the two passes of a
-    node-to-surface contact on matching meshes) make S singular to round-off (an LU pivot below
-    :data:`DEPENDENT_PIVOT` of the largest, whatever the rows' order): the displacement is the same for
-    every split of their force, and the minimum-norm mu (least squares) is taken, which splits it equally
-    and does not depend on the rows' order (on the number of ranks). Rows that repeat others but ask for
-    other gaps have no solution: VIError."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)       # an exactly zero pivot: said below
-        lu = scipy.linalg.lu_factor(S, check_finite=False)
-    pivots = np.abs(np.diag(lu[0]))
-    if pivots.min(initial=np.inf) > DEPENDENT_PIVOT * pivots.max(initial=0.0):
-        return np.asarray(scipy.linalg.lu_solve(lu, r, check_finite=False))
-    mu = np.linalg.lstsq(S, r, rcond=None)[0]
-    scale = float(np.max(np.abs(S), initial=0.0)) * float(np.max(np.abs(mu), initial=0.0)) + float(
-        np.max(np.abs(r), initial=0.0))
-    if float(np.max(np.abs(S @ mu - r), initial=0.0)) > DEPENDENT_RTOL * max(scale, 1e-300):
-        raise VIError("the active contact rows are linearly dependent and ask for different gaps (two constraints "
-                      "holding the same dofs against each other with different bounds): no step satisfies both")
-    return np.asarray(mu)
+    """The multipliers mu of S mu = r, S = G_A K^-1 G_A^T (the same on every rank), active rows that repeat
+    others allowed (:func:`~.repeated_rows.solve_repeated`: the minimum-norm mu, each repeated row's force
+    split equally whatever the rows' order; repeated rows asking for other gaps: VIError)."""
+    return solve_repeated(S, r, "the active contact rows are linearly dependent and ask for different gaps (two "
+                                "constraints holding the same dofs against each other with different bounds): no "
+                                "step satisfies both")
 
 
 class _Rows:

@@ -174,8 +174,11 @@ def test_non_matching_faces_keep_the_energy(dt):
 
 
 @pytest.mark.mpi
-def test_two_passes_on_matching_faces_are_the_one_pass_run():
+@pytest.mark.parametrize("friction", [None, "coulomb"])
+def test_two_passes_on_matching_faces_are_the_one_pass_run(friction):
     kw = dict(pair="P2/P1", dt=5e-7, T=6.5e-5)
+    if friction:            # the frictional Newton's dense systems repeat rows too (and there is no slip here)
+        kw.update(friction=friction, friction_options={"mu": 0.3})
     one = simulate(_bars(Nx=20, Ny=2), **kw).timeseries
     two = simulate(_bars(Nx=20, Ny=2, passes=2), **kw).timeseries
     force = one["contact_force"]
