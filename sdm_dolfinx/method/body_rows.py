@@ -171,8 +171,8 @@ class BodyRows:
         phi, best, found = np.full(len(y), np.inf), np.full(len(y), -1), []
         for k, s in enumerate(self.surfaces):
             sel = np.flatnonzero(member[k])
-            vals, near = s.nearby(u, y[sel])                   # collective: every rank, every pair
-            ph, n, el, xi = s.project(y[sel], vals, near)
+            vals, near, cand = s.nearby(u, y[sel])             # collective: every rank, every pair
+            ph, n, el, xi = s.project(y[sel], vals, near, cand)
             closer = ph < phi[sel]
             phi[sel[closer]], best[sel[closer]] = ph[closer], k
             found.append((sel, n, el, xi, vals))

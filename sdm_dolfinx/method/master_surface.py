@@ -160,10 +160,9 @@ class MasterSurface:
         if found:
             raise DiscretisationError(f"{label(p)}: {found[0]}")
         counts = comm.allgather(len(corners))
-        #: this rank's facets (indices into the gathered ones), their reference corners and the local dofs
-        #: of W^h (owned or ghost) at their vertices (n, nv, gdim)
+        #: this rank's facets (indices into the gathered ones) and the local dofs of W^h (owned or ghost) at
+        #: their vertices (n, nv, gdim)
         self._mine = sum(counts[:comm.rank]) + np.arange(counts[comm.rank], dtype=np.int64)
-        self._mine_corners = corners.copy()
         self._mine_dofs = (np.asarray(local_blocks, dtype=np.int64)[..., None] * bs + np.arange(self.gdim))
         self._field = fem.Function(d.W)         # this rank's values with its ghosts' (a halo exchange)
         self._owned = W.dofmap.index_map.size_local * bs
@@ -238,16 +237,18 @@ class MasterSurface:
         """The values of the owned array ``u`` of W^h at the master dofs this rank owns (not collective)."""
         return np.asarray(u[self._local_dofs])
 
-    def nearby(self, u: Array, y: Array) -> tuple[Array, npt.NDArray[np.int64]]:
-        """(the master dofs' values (len(dofs),), set at the facets received and 0 elsewhere; those facets)
-        for projecting this rank's points y (m, 3) in the state ``u`` (the owned array of W^h): the deformed
+    def nearby(self, u: Array, y: Array) -> tuple[Array, npt.NDArray[np.int64], Any]:
+        """(the master dofs' values (len(dofs),), set at the facets received and 0 elsewhere; those facets;
+        each point's :data:`CANDIDATES` facets of nearest centroids among them, (m, k) positions in that
+        array, or None without points: :meth:`project`'s first guess, found by the reach's check) for
+        projecting this rank's points y (m, 3) in the state ``u`` (the owned array of W^h): the deformed
         facets near them, sent by their owners (see the module; collective)."""
         comm = self.comm
         f = self._field.x.array
         f[:self._owned] = u[:self._owned]
         self._field.x.scatter_forward()
         mine_vals = f[self._mine_dofs]                                       # (n, nv, gdim)
-        cur = self._mine_corners.copy()
+        cur = self.points[self.cells[self._mine]]
         cur[..., :self.gdim] += mine_vals
         lo, hi = cur.min(axis=1), cur.max(axis=1)
         both = comm.allgather(((y.min(axis=0), y.max(axis=0)) if len(y) else None,
@@ -268,11 +269,11 @@ class MasterSurface:
             got = comm.alltoall([(self._mine[sel], mine_vals[sel]) for sel in send])
             facets = np.concatenate([g[0] for g in got]).astype(np.int64)
             values = np.concatenate([g[1] for g in got]) if facets.size else np.zeros((0,) + mine_vals.shape[1:])
-            need = 0.0
+            need, cand = 0.0, None
             if len(y) and len(facets) >= self._k:      # the distance to each point's k-th nearest centroid
                 pts = self.points[self.cells[facets]]
                 pts[..., :self.gdim] += values
-                dist = cKDTree(pts.mean(axis=1)).query(y, k=self._k)[0]
+                dist, cand = cKDTree(pts.mean(axis=1)).query(y, k=self._k)
                 need = float(np.max(dist.reshape(len(y), -1)[:, -1]))
             elif len(y):                # too few facets to tell: at least twice as far, and past the surface's box
                 apart = np.maximum(np.maximum(surface[0] - y.max(axis=0), y.min(axis=0) - surface[1]), 0.0)
@@ -285,9 +286,9 @@ class MasterSurface:
         self.received, self.rounds = len(facets), rounds
         vals = np.zeros(len(self.dofs))
         vals[self.at[facets]] = values
-        return vals, facets
+        return vals, facets, None if cand is None else cand.reshape(len(y), self._k)
 
-    def _closest(self, cur: Array, y: Array) -> tuple[Array, Array]:
+    def _closest(self, cur: Array, y: Array, cand: Any = None) -> tuple[Array, Array]:
         """(closest points (m, 3), facets (m,)) of the points y on the deformed facets ``cur``: the best of
         the :data:`CANDIDATES` facets of nearest centroids, then, for the points within :data:`NEAR` sizes
         of that facet (its largest centroid-to-vertex distance r), every facet that can do better: its
@@ -298,7 +299,8 @@ class MasterSurface:
         centroids = cur.mean(axis=1)
         radii = np.max(np.linalg.norm(cur - centroids[:, None], axis=2), axis=1)
         k = min(CANDIDATES, len(cur))
-        cand = cKDTree(centroids).query(y, k=k)[1].reshape(len(y), k)
+        if cand is None:            # (given: the same query, made by nearby)
+            cand = cKDTree(centroids).query(y, k=k)[1].reshape(len(y), k)
         q, element, dist = _best(y, np.repeat(np.arange(len(y)), k), cand.reshape(-1), cur)
         near = np.flatnonzero(dist <= NEAR * radii[element])
         if near.size:
@@ -315,12 +317,13 @@ class MasterSurface:
             q[near], element[near], _ = _best(yn, np.concatenate(point), np.concatenate(facet), cur)
         return q, element
 
-    def project(self, y: Array, vals: Array,
-                facets: npt.NDArray[np.int64] | None = None) -> tuple[Array, Array, Array, Array]:
+    def project(self, y: Array, vals: Array, facets: npt.NDArray[np.int64] | None = None,
+                candidates: Any = None) -> tuple[Array, Array, Array, Array]:
         """For the points y (m, 3), with the master dofs' values ``vals``: (signed distances phi (m,), unit
         normals n (m, 3), the closest facets (m,), the barycentric coordinates xi (m, nv) of the closest
         points: the master vertices' weights) on the deformed surface (see the module), among ``facets``
-        (default: every facet)."""
+        (default: every facet; ``candidates``: each point's facets of nearest centroids among them, as
+        :meth:`nearby` gives them)."""
         if len(y) == 0:
             return np.zeros(0), np.zeros((0, 3)), np.zeros(0, dtype=np.int64), np.zeros((0, self.cells.shape[1]))
         among = np.arange(len(self.cells)) if facets is None else np.asarray(facets, dtype=np.int64)
@@ -328,7 +331,7 @@ class MasterSurface:
             raise DiscretisationError("no master facet received for a slave point (internal error)")
         cur = self.points[self.cells[among]]
         cur[..., :self.gdim] += vals[self.at[among]]
-        q, local = self._closest(cur, y)
+        q, local = self._closest(cur, y, candidates)
         element = among[local]
         xi = np.clip(barycentric(q, cur[local]), 0.0, 1.0)
         xi /= xi.sum(axis=1, keepdims=True)

@@ -38,7 +38,6 @@ from mpi4py import MPI
 
 import numpy as np
 
-from sdm_dolfinx.solvers.base import VIError
 from sdm_dolfinx.solvers.repeated_rows import solve_repeated
 from sdm_dolfinx.solvers.schur import SCHUR_COLUMN_MEMORY
 

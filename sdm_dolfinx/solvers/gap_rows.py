@@ -21,6 +21,8 @@ from sdm_dolfinx.solvers.repeated_rows import solve_repeated
 from sdm_dolfinx.solvers.schur import SCHUR_COLUMN_MEMORY
 
 Array = npt.NDArray[np.float64]
+
+
 def active_multipliers(S: Array, r: Array) -> Array:
     """The multipliers mu of S mu = r, S = G_A K^-1 G_A^T (the same on every rank), active rows that repeat
     others allowed (:func:`~.repeated_rows.solve_repeated`: the minimum-norm mu, each repeated row's force

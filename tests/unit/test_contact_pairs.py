@@ -206,8 +206,8 @@ def test_the_facets_near_a_ranks_points_project_as_the_whole_surface(which):
     whole = s.displacements(u)
     for y in (near, np.vstack([near, far])):
         phi, n, el, xi = s.project(y, whole)
-        vals, facets = s.nearby(u, y)
-        got = s.project(y, vals, facets)
+        vals, facets, cand = s.nearby(u, y)
+        got = s.project(y, vals, facets, cand)
         np.testing.assert_allclose(got[0], phi, rtol=0.0, atol=1e-12 * s.size)
         np.testing.assert_allclose(got[1], n, rtol=0.0, atol=1e-12)
         # the same closest points (a point at a vertex or an edge may name either of its facets)
