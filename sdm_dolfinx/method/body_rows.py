@@ -77,6 +77,16 @@ def refusal(integ: Any, scheme: Any, vi_solver: str, linear: str) -> Optional[st
     return None
 
 
+def tangential_rows(vals: Array, weights: Array, normals: Array, comp: Any) -> Array:
+    """(1 + gdim - 1, m, k): the normal rows ``vals`` (m, k), then the rows of the entries' ``weights`` along each
+    tangent of the frame :func:`~sdm_dolfinx.solvers.friction_frames.frames_of` builds on ``normals`` (m, gdim;
+    a zero normal: zero rows); ``comp`` (m, k): each entry's component."""
+    Q = frames_of(normals) * np.any(normals != 0.0, axis=1)[:, None, None]   # (m, g, g), row 0 n
+    comp = np.broadcast_to(comp, vals.shape)
+    return np.stack([vals, *(weights * np.take_along_axis(Q[:, j], comp, axis=1)
+                             for j in range(1, normals.shape[1]))])
+
+
 class BodyRows:
     """The gap rows of a Discretisation ``d`` whose Problem declares ``contact_pairs`` (see the module).
 
@@ -211,17 +221,27 @@ class BodyRows:
         (1 + gdim - 1, m, k): the normal rows, then the same rows along each tangent of the frame
         :func:`~sdm_dolfinx.solvers.friction_frames.frames_of` builds on n (a row without a master point,
         zero: it holds nothing this step)."""
-        phi, per_pair = self._closest(u, self.x, self.dofs, self._member, key="vertices")
-        m, g = len(self.dofs), self.gdim
+        ids, vals, g, pair, weights, normals = self.node_rows(u, self.x, self.dofs, self._member, "vertices")
+        self.pair_of_row[:] = pair
+        if not tangential:
+            return (ids, vals), g
+        return (ids, tangential_rows(vals, weights, normals, (ids - self._lo) % self.gdim)), g
+
+    def node_rows(self, u: Array, x: Array, dofs: Array, member: Any, key: Any) -> tuple[Any, ...]:
+        """The node-to-surface rows of the points at reference ``x`` (3, n) with dofs ``dofs`` (n, gdim) held by
+        the pairs ``member`` (pairs, n) in the state ``u`` (collective): ids (n, k) global dofs, values (n, k),
+        g (n,) (-inf: no master point, a row of zeros), the pair of each (-1: none), the entries' weights
+        (1 at the slave's, -xi_v at the master's) and the normals n (n, gdim)."""
+        phi, per_pair = self._closest(u, x, dofs, member, key=key)
+        m, g = len(dofs), self.gdim
         width = g + max((s.at.shape[1] * g for s in self.surfaces), default=0)
         ids, vals = np.full((m, width), -1, dtype=np.int64), np.zeros((m, width))
-        ids[:, :g] = self.dofs + self._lo
+        ids[:, :g] = dofs + self._lo
         rhs = np.zeros(m)
-        self.pair_of_row[:] = -1
-        weights = np.zeros((m, width)) if tangential else None     # the entries' xi_v (1 at the slave)
-        normals = np.zeros((m, g))
+        pair = np.full(m, -1, dtype=np.int64)
+        weights, normals = np.zeros((m, width)), np.zeros((m, g))
         for k, (sel, n, el, xi, mvals) in enumerate(per_pair):
-            self.pair_of_row[sel] = k
+            pair[sel] = k
             s, free = self.surfaces[k], self._free[k]
             at = s.at[el]                                                   # (p, nv, gdim) positions in s.dofs
             coef = -xi[:, :, None] * n[:, None, :g] * free[at]              # the master vertices' entries
@@ -229,19 +249,13 @@ class BodyRows:
             w = at.shape[1] * g
             vals[sel, g:g + w] = coef.reshape(len(sel), w)
             ids[sel, g:g + w] = s.dofs[at].reshape(len(sel), w)
-            rhs[sel] = np.einsum("ij,ij->i", n[:, :g], u[self.dofs[sel]]) + np.einsum("pak,pak->p", coef, mvals[at])
-            if weights is not None:
-                normals[sel] = n[:, :g]
-                weights[sel, :g] = 1.0
-                weights[sel, g:g + w] = (-xi[:, :, None] * free[at]).reshape(len(sel), w)
+            rhs[sel] = np.einsum("ij,ij->i", n[:, :g], u[dofs[sel]]) + np.einsum("pak,pak->p", coef, mvals[at])
+            normals[sel] = n[:, :g]
+            weights[sel, :g] = 1.0
+            weights[sel, g:g + w] = (-xi[:, :, None] * free[at]).reshape(len(sel), w)
         unread = ids < 0
-        ids[unread], vals[unread] = self.dofs[:, :1].repeat(width, axis=1)[unread] + self._lo, 0.0
-        if weights is None:
-            return (ids, vals), rhs - phi
-        Q = frames_of(normals) * np.any(normals != 0.0, axis=1)[:, None, None]   # (m, g, g), row 0 n
-        comp = np.tile(np.arange(g), width // g)                                # each entry's component
-        tangents = [weights * Q[:, j, comp] for j in range(1, g)]
-        return (ids, np.stack([vals, *tangents])), rhs - phi
+        ids[unread], vals[unread] = dofs[:, :1].repeat(width, axis=1)[unread] + self._lo, 0.0
+        return ids, vals, rhs - phi, pair, weights, normals
 
     def after_step(self, info: dict, u: Array, t1: float, lam: Array) -> None:
         """``info["gap_end"]``: the true signed distance of U^{n+1} = ``u`` (collective)."""

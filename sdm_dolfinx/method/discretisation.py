@@ -18,6 +18,7 @@ from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.method.frozen import FrozenData
 from sdm_dolfinx.method import dirichlet as _parts, equilibrium, masses, problem_data, quadrature
 from sdm_dolfinx.method.body_rows import BodyRows
+from sdm_dolfinx.method.weighted_body_rows import WeightedBodyRows
 from sdm_dolfinx.method.obstacle_rows import ObstacleRows
 from sdm_dolfinx.method.weighted_rows import WeightedRows
 from sdm_dolfinx.problems import density
@@ -52,7 +53,9 @@ class Discretisation:
             :func:`.masses.nodal_measure`). ``"nodes"`` is refused where it names the vertices
             only (P1, P1+, and every pair in 1-D, whose boundary is a vertex). ``"weighted"``: one
             row per constrained vertex, the gap averaged over the contact facets around it
-            against its P1 hat function (:mod:`.weighted_rows`: holds a P2 face between vertices).
+            against its P1 hat function (:mod:`.weighted_rows`: holds a P2 face between vertices;
+            between bodies, the node-to-surface gap of every slave node so averaged:
+            :mod:`.weighted_body_rows`).
 
     Raises:
         ProblemInputError: the Problem's own validation (:meth:`Problem.validate`).
@@ -67,9 +70,9 @@ class Discretisation:
             raise ValueError(bad[0])
         if constrain not in CONSTRAIN:
             raise ValueError(f"constrain must be one of {', '.join(CONSTRAIN)} (got {constrain!r})")
-        if problem.contact_pairs and constrain != "vertices":
+        if problem.contact_pairs and constrain == "nodes":
             raise DiscretisationError(f"problem {problem.name!r} has contact pairs, which constrain {constrain!r} does "
-                                      f"not take yet: use constrain 'vertices'")
+                                      f"not take yet: use constrain 'vertices' or 'weighted'")
         self.constrain = constrain
         self.problem = problem
         self.pair = get_pair(pair) if isinstance(pair, str) else pair
@@ -98,9 +101,11 @@ class Discretisation:
         #: the gap rows against the Problem's rigid obstacles (:mod:`.obstacle_rows`), or None
         self.obstacle_rows = ObstacleRows(self) if problem.obstacles else None
         #: the gap rows between the bodies of the Problem's contact pairs (:mod:`.body_rows`), or None
-        self.body_rows = BodyRows(self) if problem.contact_pairs else None
+        self.body_rows = ((WeightedBodyRows if constrain == "weighted" else BodyRows)(self) if problem.contact_pairs
+                          else None)
         #: the weighted gap's rows (constrain="weighted": :mod:`.weighted_rows`), or None
-        self.weighted_rows = WeightedRows(self) if constrain == "weighted" and self.num_constraints else None
+        self.weighted_rows = (WeightedRows(self) if constrain == "weighted" and self.num_constraints
+                              and self.body_rows is None else None)
         if self.mass in masses.MODIFIED:
             consistent, self.M = self.M, masses.build(self)
             consistent.destroy()

@@ -105,8 +105,12 @@ class BoundarySink:
         if getattr(self.discretisation, "weighted_rows", None) is not None:
             return ("the weighted gap holds the face on average between its vertices: constrain='nodes' "
                     "(--constrain nodes) holds every node of it")
-        if getattr(self.discretisation, "body_rows", None) is not None:
-            return "the contact pairs hold the slave vertices only (constrain 'nodes' is not built for them yet)"
+        bodies = getattr(self.discretisation, "body_rows", None)
+        if bodies is not None and self.discretisation.constrain == "weighted":
+            return "the weighted gap holds the slave face on average between its vertices"
+        if bodies is not None:
+            return ("the contact pairs hold the slave vertices only: constrain='weighted' (--constrain weighted) holds "
+                    "the slave face between them")
         if getattr(self.discretisation, "obstacle_rows", None) is not None:
             return ("the obstacles hold the constrained vertices only: constrain='nodes' (--constrain nodes) holds "
                     "every node of the face")
