@@ -10,11 +10,14 @@ sent to it, every slave vertex projected, the rows assembled) and of the end-of-
 steps, and the most facets a rank received in the last projection (the whole surface before the
 facets were sent by bounding boxes: "facets sent to a rank"). ``--friction``: ball 1 also moves across at 100 mm/s (an oblique collision) under Coulomb friction
 (mu = 0.3): the rows carry their tangential rows too, and the frictional solver gathers every rank's rows
-into one matrix every step (``NodeFrames.set_rows``: its time is the column "rows matrix").
+into one matrix every step (``NodeFrames.set_rows``: its time is the column "rows matrix"). ``--weighted``:
+the weighted gap (``constrain="weighted"``, :mod:`sdm_dolfinx.method.weighted_body_rows`): every node of the
+slave faces projected, each node's row sent to the owners of the vertices it enters.
 
     .venv/bin/python bench/two_bodies.py                        # levels 1-3, 1 rank; results/two_bodies.json
     .venv/bin/python bench/two_bodies.py --ranks 2 --level 3
     .venv/bin/python bench/two_bodies.py --friction --level 3
+    .venv/bin/python bench/two_bodies.py --weighted --level 3
     .venv/bin/python bench/two_bodies.py --table
 """
 import argparse
@@ -32,11 +35,12 @@ STEPS, DT, HEIGHT = 6, 4e-5, 0.004
 REPEATS = 3
 
 
-def one(level, friction=False):
-    """Run one case in this process (``friction``: oblique, Coulomb mu = 0.3); returns its record."""
+def one(level, friction=False, weighted=False):
+    """Run one case in this process (``friction``: oblique, Coulomb mu = 0.3; ``weighted``: the weighted gap);
+    returns its record."""
     from mpi4py import MPI
     import numpy as np
-    from sdm_dolfinx.method import body_rows
+    from sdm_dolfinx.method import body_rows, weighted_body_rows
     from sdm_dolfinx.method.discretisation import Discretisation
     from sdm_dolfinx.contact.friction import make as make_friction
     from sdm_dolfinx.problems import two_balls
@@ -56,9 +60,10 @@ def one(level, friction=False):
             return out
         return wrapper
     body_rows.BodyRows.rows = timed("rows", body_rows.BodyRows.rows)
+    weighted_body_rows.WeightedBodyRows.rows = timed("rows", weighted_body_rows.WeightedBodyRows.rows)
     body_rows.BodyRows.after_step = timed("gap", body_rows.BodyRows.after_step)
     friction_frames.NodeFrames.set_rows = timed("matrix", friction_frames.NodeFrames.set_rows)
-    d = Discretisation(p, "P2/P1")
+    d = Discretisation(p, "P2/P1", constrain="weighted" if weighted else "vertices")
     integ = Integrator(d, "midpoint", DT, linear="schur", friction=make_friction("coulomb", 0.3) if friction else None)
     U, V = d.initial_state()
     V = integ.initial_velocity(V)
@@ -75,24 +80,30 @@ def one(level, friction=False):
     surface = d.body_rows.surfaces[0]
     received = comm.allreduce(surface.received, op=MPI.MAX)          # the last projection's, the most a rank got
     integ.destroy()
-    return {"level": level, "ranks": comm.size, "friction": bool(friction), "matrix_s": spent["matrix"], "dim_W": d.dims()["dim_W"], "slave_vertices": d.num_constraints,
+    return {"level": level, "ranks": comm.size, "friction": bool(friction), "weighted": bool(weighted), "matrix_s": spent["matrix"], "dim_W": d.dims()["dim_W"], "slave_vertices": d.num_constraints,
             "master_facets": len(d.body_rows.surfaces[0].cells), "setup_s": setup, "step_s": times,
             "n_active": actives, "contact_step_s": float(np.mean(contact)) if contact else None,
             "rows_s": spent["rows"], "gap_s": spent["gap"], "facets_received": received}
 
 
-def run_fresh(level, ranks, friction=False):
+def run_fresh(level, ranks, friction=False, weighted=False):
     """One record from a fresh process (the median time of REPEATS runs)."""
-    return median_of_fresh_runs(__file__, ["--one", level] + (["--friction"] if friction else []), ranks, REPEATS)
+    return median_of_fresh_runs(__file__, ["--one", level] + (["--friction"] if friction else [])
+                                + (["--weighted"] if weighted else []), ranks, REPEATS)
+
+
+def _key(r):
+    return r["level"], r["ranks"], r.get("friction", False), r.get("weighted", False)
 
 
 def table(results):
-    lines = ["| level | ranks | friction | dim W^h | slave vertices | master facets | active (last step) | "
+    lines = ["| level | ranks | friction | gap | dim W^h | slave vertices | master facets | active (last step) | "
              "facets sent to a rank | contact step (s) | rows (s/step) | rows matrix (s/step) | end gap (s/step) | "
-             "search and rows / step | set-up (s) |", "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
-    for r in sorted(results, key=lambda r: (r["level"], r["ranks"], r.get("friction", False))):
+             "search and rows / step | set-up (s) |", "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in sorted(results, key=_key):
         steps, mat = sum(r["step_s"]), r.get("matrix_s", 0.0)
-        lines.append(f"| {r['level']} | {r['ranks']} | {'Coulomb' if r.get('friction') else '-'} | {r['dim_W']} | "
+        lines.append(f"| {r['level']} | {r['ranks']} | {'Coulomb' if r.get('friction') else '-'} | "
+                     f"{'weighted' if r.get('weighted') else 'vertices'} | {r['dim_W']} | "
                      f"{r['slave_vertices']} | {r['master_facets']} | {r['n_active'][-1]} | {r.get('facets_received', '-')} | "
                      f"{r['contact_step_s']:.4f} | "
                      f"{r['rows_s'] / STEPS:.4f} | {mat / STEPS:.4f} | {r['gap_s'] / STEPS:.4f} | "
@@ -105,11 +116,12 @@ if __name__ == "__main__":
     ap.add_argument("--level", type=int, action="append", choices=(1, 2, 3, 4))
     ap.add_argument("--ranks", type=int, default=1)
     ap.add_argument("--friction", action="store_true", help="an oblique collision under Coulomb friction (mu 0.3)")
+    ap.add_argument("--weighted", action="store_true", help="the weighted gap (constrain weighted)")
     ap.add_argument("--table", action="store_true", help="print the table of the recorded results")
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.one:
-        rec = one(args.one, args.friction)
+        rec = one(args.one, args.friction, args.weighted)
         from mpi4py import MPI
         if MPI.COMM_WORLD.rank == 0:
             print(json.dumps(rec))
@@ -117,9 +129,8 @@ if __name__ == "__main__":
     results = json.loads(RESULTS.read_text()) if RESULTS.exists() else []
     if not args.table:
         for level in args.level or LEVELS:
-            rec = run_fresh(level, args.ranks, args.friction)
-            results = [r for r in results if (r["level"], r["ranks"], r.get("friction", False))
-                       != (level, args.ranks, args.friction)] + [rec]
+            rec = run_fresh(level, args.ranks, args.friction, args.weighted)
+            results = [r for r in results if _key(r) != _key(rec)] + [rec]
             print(f"level {level} ranks {args.ranks}: contact step {rec['contact_step_s']:.4f} s (repeats "
                   f"{', '.join(f'{t:.4f}' for t in rec['repeats'])})", flush=True)
             RESULTS.parent.mkdir(exist_ok=True)

@@ -6,7 +6,8 @@ The paper's disc (section 5: radius 20 mm, plane strain, lambda = 300, mu = 150 
 rho = 1e-6 t/mm^3, the gmsh mesh of ``--level``) and its mirror image in the plane y = 0, one mesh
 of two connected parts: disc 1 centred at (0, R + d) moving down at v, disc 2 centred at (0, -R - d)
 moving up at v, no gravity. Contact pair: the vertices of disc 1's lower half (slave) stay outside
-disc 2's upper half (master), frictionless.
+disc 2's upper half (master), frictionless; ``--passes 2`` adds the pair ``back`` (disc 2's upper
+vertices outside disc 1's lower half: neither face sinks into the other between its vertices).
 
 By symmetry each disc behaves as the built-in disc falling at v onto the rigid foundation y = 0 from
 the height d without gravity (``python -m sdm_dolfinx disc --gravity 0 --height d --v0 -v``), whose
@@ -46,7 +47,7 @@ def two_discs_mesh(comm, h, radius, d):
     return create_mesh(comm, cells, x, ufl.Mesh(compat.element("Lagrange", "triangle", 2, (2,))))
 
 
-def build(comm, level, radius, height, rho, lame_lambda, lame_mu, v):
+def build(comm, level, radius, height, rho, lame_lambda, lame_mu, v, passes):
     """The two discs for declared values (see PARAMS)."""
     cy, tol = radius + height, 1e-8 * radius
     msh = two_discs_mesh(comm, LEVELS[level], radius, height)
@@ -57,7 +58,10 @@ def build(comm, level, radius, height, rho, lame_lambda, lame_mu, v):
         upper half, its boundary facets chosen by their cells' side (touching discs differ)."""
         return facets_where(lambda x: np.abs(x[1]) <= cy + tol, side=lambda c: (c[1] > 0) == upper)
 
-    slave = np.sort(half(True)(msh)).astype(np.int32)
+    pairs = [ContactPair(slave=half(True), master=half(False), name="discs")]
+    if passes == 2:
+        pairs.append(ContactPair(slave=half(False), master=half(True), name="back"))
+    slave = np.unique(np.concatenate([np.asarray(pair.slave(msh), dtype=np.int32) for pair in pairs]))
     ds_c = ufl.Measure("ds", domain=msh, subdomain_data=dmesh.meshtags(
         msh, fdim, slave, np.ones(len(slave), dtype=np.int32)))(1)
     zero = fem.Constant(msh, PETSc.ScalarType((0.0, 0.0)))
@@ -69,14 +73,14 @@ def build(comm, level, radius, height, rho, lame_lambda, lame_mu, v):
         u0=lambda x: np.zeros((2, x.shape[1])),
         v0=lambda x: np.vstack([np.zeros(x.shape[1]), np.where(x[1] > 0.0, -v, v)]),
         constraint_vertices=None, lower_bound=None,
-        contact_pairs=[ContactPair(slave=half(True), master=half(False), name="discs")],
+        contact_pairs=pairs,
         constraint_component=1,
         constraint_measure=lambda q: q * ds_c,
         probe=(0.0, height),                                      # disc 1's lowest point
         extra_columns=("contact_force", "momentum_y", "elastic"),
         momentum_component=1,
         parameters={"level": level, "h": LEVELS[level], "radius": radius, "height": height, "rho": rho,
-                    "lame_lambda": lame_lambda, "lame_mu": lame_mu, "v": v, "plane": "strain",
+                    "lame_lambda": lame_lambda, "lame_mu": lame_mu, "v": v, "plane": "strain", "passes": passes,
                     "mass": 2.0 * rho * np.pi * radius ** 2},
         units={"radius": "mm", "height": "mm", "rho": "t/mm^3", "lame_lambda": "N/mm^2", "lame_mu": "N/mm^2",
                "v": "mm/s", "t": "s", "u_probe": "mm", "lambda_probe": "N/mm^2 (>= 0 compressive)",
@@ -93,6 +97,8 @@ PARAMS = (
     Param("lame_lambda", 300.0, "Lamé's first parameter", unit="N/mm^2", low=0.0),
     Param("lame_mu", 150.0, "shear modulus", unit="N/mm^2", low=0.0, low_strict=True),
     Param("v", 1000.0, "speed of each disc toward the other", unit="mm/s", low=0.0, low_strict=True),
+    Param("passes", 1, "node-to-surface passes: 1 (disc 1's lower vertices against disc 2's upper half) or 2 (and "
+                       "disc 2's against disc 1's: the pair 'back')", type=int, low=1, high=2),
 )
 
 PROBLEM = ProblemSpec(

@@ -11,6 +11,8 @@ image in the plane z = 0 moving up at v (by default), or a ball of its own (--R2
 materials and densities per cell (DG0), no gravity. Contact pair: the vertices of ball 1's lower
 hemisphere (slave) stay outside ball 2's upper hemisphere (master), frictionless or (``--friction``)
 with friction on their relative slip; ``--vt`` gives ball 1 a velocity across the line of centres.
+``--passes 2`` adds the pair ``back`` (ball 2's upper vertices outside ball 1's lower hemisphere: on
+unequal meshes neither face sinks into the other between its vertices).
 
 Hertz for two elastic spheres (:func:`hertz_two`): the curvatures add, 1/R* = 1/R1 + 1/R2, the
 compliances add, 1/E* = (1 - nu1^2)/E1 + (1 - nu2^2)/E2, the masses combine into the reduced mass
@@ -80,7 +82,7 @@ def _per_ball(msh, upper, lower):
     return f
 
 
-def build(comm, level, radius, height, E, nu, rho, v, R2, E2, nu2, rho2, v2, vt):
+def build(comm, level, radius, height, E, nu, rho, v, R2, E2, nu2, rho2, v2, vt, passes):
     """The two balls for declared values (see PARAMS)."""
     R2, E2, nu2, rho2, v2 = (radius if R2 is None else R2, E if E2 is None else E2, nu if nu2 is None else nu2,
                              rho if rho2 is None else rho2, v if v2 is None else v2)
@@ -101,7 +103,10 @@ def build(comm, level, radius, height, E, nu, rho, v, R2, E2, nu2, rho2, v2, vt)
     def side_cells(upper):
         return cells_where(lambda c: (c[2] > 0.0) == upper)
 
-    slave = np.sort(half(True)(msh)).astype(np.int32)
+    pairs = [ContactPair(slave=half(True), master=half(False), name="balls")]
+    if passes == 2:
+        pairs.append(ContactPair(slave=half(False), master=half(True), name="back"))
+    slave = np.unique(np.concatenate([np.asarray(pair.slave(msh), dtype=np.int32) for pair in pairs]))
     ds_c = ufl.Measure("ds", domain=msh, subdomain_data=dmesh.meshtags(
         msh, fdim, slave, np.ones(len(slave), dtype=np.int32)))(1)
     zero = fem.Constant(msh, PETSc.ScalarType((0.0, 0.0, 0.0)))
@@ -113,7 +118,7 @@ def build(comm, level, radius, height, E, nu, rho, v, R2, E2, nu2, rho2, v2, vt)
         u0=lambda x: np.zeros((3, x.shape[1])),
         v0=lambda x: np.vstack([np.where(x[2] > 0.0, vt, 0.0), 0.0 * x[0], np.where(x[2] > 0.0, -v, v2)]),
         constraint_vertices=None, lower_bound=None,
-        contact_pairs=[ContactPair(slave=half(True), master=half(False), name="balls")],
+        contact_pairs=pairs,
         bodies=[Body("ball1", side_cells(True)), Body("ball2", side_cells(False))],
         constraint_component=2,
         constraint_measure=lambda q: q * ds_c,
@@ -121,7 +126,7 @@ def build(comm, level, radius, height, E, nu, rho, v, R2, E2, nu2, rho2, v2, vt)
         extra_columns=("contact_force", "momentum_y", "elastic"),
         momentum_component=2,
         parameters={"level": level, "radius": radius, "height": height, "E": E, "nu": nu, "rho": rho, "v": v,
-                    "R2": R2, "E2": E2, "nu2": nu2, "rho2": rho2, "v2": v2, "vt": vt,
+                    "R2": R2, "E2": E2, "nu2": nu2, "rho2": rho2, "v2": v2, "vt": vt, "passes": passes,
                     "mass1": rho * 4.0 / 3.0 * np.pi * radius ** 3, "mass2": rho2 * 4.0 / 3.0 * np.pi * R2 ** 3,
                     "hertz": ref},
         units={"radius": "mm", "height": "mm", "E": "N/mm^2", "rho": "t/mm^3", "v": "mm/s", "R2": "mm",
@@ -148,6 +153,8 @@ PARAMS = (
     Param("v2", None, "speed of ball 2 toward ball 1 (default: ball 1's v)", unit="mm/s", type=float, low=0.0),
     Param("vt", 0.0, "ball 1's velocity along x, across the line of centres (an oblique collision: with "
                      "--friction coulomb --mu the balls exchange a tangential impulse)", unit="mm/s"),
+    Param("passes", 1, "node-to-surface passes: 1 (ball 1's lower vertices against ball 2's upper half) or 2 (and "
+                       "ball 2's against ball 1's: the pair 'back')", type=int, low=1, high=2),
 )
 
 SPEC = ProblemSpec(
