@@ -65,7 +65,8 @@ so the plane motion is d'Alembert's 1-D one; the derivation is in the problem fi
   striking a bar at rest, measured (Nx, Ny = 4): Nx = 40, dt = h/(2c): contact time -0.94 %, impulse
   -0.97 % (too near 1 % to assert there); Nx = 80, dt/2: 0.00 %, -0.50 %, the striker left at 0.50 % of v,
   plateau stress within 0.2 %: 1 % asserted at Nx = 80. Two discs head on at level 2 (dt = 1e-4 s) against
-  one disc on its plane, both weighted: peak +0.09 %, impulse +1.2 %, the same contact steps, energy within
+  one disc on its plane, both weighted: peak +0.09 %, impulse +1.2 %, the same contact steps (dolfinx 0.11:
+  one more at the end, asserted: within one), energy within
   2.1 % (3 %, 3 %, 2.5 % asserted, as the vertex rows' at level 1); the slave face's deepest sink
   (gap_min_boundary) 0.127 mm against the vertex rows' 0.312 mm (0.41 times): at most half asserted (the
   mid-edge nodes are in the rows; level 3 at dt = 5e-5 s: 0.047 against 0.183). Two balls head on at level
@@ -185,7 +186,9 @@ def test_two_discs_head_on_with_the_weighted_gap():
     one = simulate(disc.problem(COMM, level=2, gravity=0.0, height=10.0, v0=-1000.0), constrain="weighted",
                    **kw).timeseries
     f1, f2 = one["contact_force"], two["contact_force"]
-    np.testing.assert_array_equal(np.flatnonzero(f2 > 0), np.flatnonzero(f1 > 0))
+    # the same first contact step, the duration within a step (60 steps; dolfinx 0.11 ends one step later)
+    on1, on2 = np.flatnonzero(f1 > 0), np.flatnonzero(f2 > 0)
+    assert on2[0] == on1[0] and abs(len(on2) - len(on1)) <= 1 and abs(on2[-1] - on1[-1]) <= 1
     assert f2.max() == pytest.approx(f1.max(), rel=0.03) and np.sum(f2) == pytest.approx(np.sum(f1), rel=0.03)
     e = two["energy"]
     assert np.max(np.abs(e / e[0] - 1.0)) <= 0.025
