@@ -38,6 +38,7 @@ STRATEGIES = {
     "cg-factor": {"vi_solver": "ssn", "linear": "cg-factor"},
     "cg-amg": {"vi_solver": "ssn", "linear": "cg-amg"},
     "cg-gamg": {"vi_solver": "ssn", "linear": "cg-gamg"},
+    "cg-pmg": {"vi_solver": "ssn", "linear": "cg-pmg"},
     "amg": {"vi_solver": "ssn", "linear": "amg"},
     "lu": {"vi_solver": "ssn", "linear": "lu"},
     "rsls": {"vi_solver": "vinewtonrsls", "linear": "lu"},
@@ -48,7 +49,8 @@ STRATEGIES = {
 SUITES = {
     "membrane": {"problem": "membrane", "pair": "P1+/P0", "dt": 1e-3, "T": 0.4,
                  "sizes": [20, 40, 80, 160, 320],
-                 "max_size": {"lu": 80, "rsls": 80, "schur": 80, "cg-factor": 160, "amg": 160, "cg-amg": 160}},
+                 "max_size": {"lu": 80, "rsls": 80, "schur": 80, "cg-factor": 160, "amg": 160, "cg-amg": 160,
+                              "cg-pmg": 0}},       # cg-pmg coarsens P2: the membrane's P1+ has none
     "disc": {"problem": "disc", "pair": "P2/P1", "dt": 5e-5, "T": 0.02,
              "sizes": [1, 2, 3, 4, 5],
              "max_size": {"lu": 2, "rsls": 2, "amg": 3, "cg-amg": 3, "schur": 4, "cg-factor": 4}},
@@ -62,7 +64,7 @@ SUITES = {
     # maximal compression (Hertz: t_c = 3.9 ms, so the contact steps are the loaded half)
     "ball": {"problem": "ball", "pair": "P2/P1", "dt": 4e-5, "T": 3e-3, "height": 0.1,
              "sizes": [1, 2, 3, 4, 5],
-             "max_size": {"lu": 1, "rsls": 1, "amg": 2, "cg-amg": 2, "cg-factor": 2, "cg-gamg": 2}},
+             "max_size": {"lu": 1, "rsls": 1, "amg": 2, "cg-amg": 2, "cg-factor": 2, "cg-gamg": 2, "cg-pmg": 3}},
     # the ball where 75 steps would take hours (cg-gamg; auto's choice at level 5 on this machine):
     # 6 steps from 4 um above the plane, contact from step 2 (up to 25 / 41 / 90 active vertices
     # at levels 3 / 4 / 5)

@@ -347,3 +347,12 @@ def vtk_mesh(V):
     if hasattr(plot, "vtk_mesh"):  # pragma: no cover
         return plot.vtk_mesh(V)
     return plot.create_vtk_mesh(V)
+
+
+def interpolation_matrix(V0, V1):
+    """The assembled PETSc matrix (V1 x V0) of the interpolation from ``V0`` into ``V1`` on the same mesh
+    (dolfinx's C++ ``interpolation_matrix``, the same call on 0.5.2 to 0.11)."""
+    from dolfinx.cpp.fem.petsc import interpolation_matrix as _interpolation_matrix
+    A = _interpolation_matrix(V0._cpp_object, V1._cpp_object)
+    A.assemble()
+    return A

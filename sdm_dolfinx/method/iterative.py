@@ -1,6 +1,13 @@
-"""What the iterative linear strategy ``cg-gamg`` needs from the discretisation: the rigid body
-modes of W^h (GAMG's near-nullspace), a sparse matrix P ~ K to build the AMG hierarchy from, and
-a cheap product with K.
+"""What the iterative linear strategies ``cg-gamg`` and ``cg-pmg`` need from the discretisation: the
+rigid body modes of W^h (GAMG's near-nullspace), a sparse matrix P ~ K to build the AMG hierarchy from
+(and whose diagonal is K's), a cheap product with K; for ``cg-pmg`` the interpolation from the vertices'
+P1 into W^h = P2 and the Galerkin coarse operator I^T K I.
+
+**cg-pmg** (a two-level p-multigrid): GAMG on P sees the P2 elasticity operator through a sparse
+stand-in and needs more CG iterations as the mesh is refined (the ball, levels 1-4: 43, 47, 63, 69 to
+1e-10 from zero, random right-hand side); two Chebyshev/Jacobi steps on K itself smooth the P2 part, and
+GAMG on the P1 Galerkin operator I^T K I (the P1 elasticity problem with its rigid body modes, where
+smoothed aggregation works well) the rest: 17, 18, 18, 19 iterations (bench/README.md).
 
 For P2/P1 with a lumped C, M = B^T D^-1 B couples every P2 dof with its P1 vertex patches'
 neighbours: the 3-D ball's K has ~590 nonzeros per row against A's ~76 (level 1: 3.9 M
@@ -18,7 +25,9 @@ from petsc4py import PETSc
 
 import numpy as np
 
-from sdm_dolfinx.solvers.active_set import PMAT, PRODUCT
+from sdm_dolfinx import compat
+from sdm_dolfinx.method.errors import DiscretisationError
+from sdm_dolfinx.solvers.active_set import PMAT, PMG_COARSE, PMG_INTERPOLATION, PRODUCT
 
 
 
@@ -79,11 +88,51 @@ class _Product:
         y.array[self.dd] = x.array_r[self.dd]
 
 
-def attach(K, d, coefficients):
+def refusal(d, linear, block):
+    """Why linear strategy ``linear`` cannot run on Discretisation ``d`` (``block``: the consistent mass's
+    (U, V) block system), one line, or None: ``cg-pmg``'s coarsening needs the lumped M formulation and a
+    P2 W^h."""
+    if linear != "cg-pmg":
+        return None
+    if block:
+        return ("linear strategy cg-pmg coarsens the step matrix of the lumped M formulation, and mass "
+                "'consistent' solves the (U, V) block system: use mass 'lumped' or choose cg-gamg")
+    return coarse_refusal(d)
+
+
+def coarse_refusal(d):
+    """Why ``cg-pmg`` cannot run on Discretisation ``d`` (one line), or None: its coarse space is the
+    vertices' P1, so W^h must be the Lagrange P2 (P2/P1, P2/P2)."""
+    family, degree = d.pair.w
+    if family == "P+" or degree != 2:
+        return (f"linear strategy cg-pmg coarsens W^h = P2 to P1 at the vertices, and pair {d.pair.name} has "
+                f"W^h = {'P1 + bubble' if family == 'P+' else f'P{degree}'}: choose cg-gamg")
+    return None
+
+
+def _coarse(K, d, keep):
+    """Compose with K the interpolation I from the vertices' P1 into W^h and the Galerkin coarse operator
+    I^T K I with the P1 rigid body modes (``cg-pmg``: :func:`~sdm_dolfinx.solvers.active_set.InactiveSetSolver.
+    _pmg_preconditioner`). The Dirichlet rows and columns of K (the identity) enter I^T K I as they are."""
+    refusal = coarse_refusal(d)
+    if refusal:
+        raise DiscretisationError(refusal)
+    interpolation = compat.interpolation_matrix(d.P1, d.W)
+    coarse = K.PtAP(interpolation)
+    ns = rigid_body_modes(d.P1)
+    if ns is not None and ns.getVecs()[0].getLocalSize() == coarse.getLocalSize()[0]:
+        coarse.setNearNullSpace(ns)
+    K.compose(PMG_INTERPOLATION, interpolation)
+    K.compose(PMG_COARSE, coarse)
+    keep += [interpolation, coarse, ns]
+
+
+def attach(K, d, coefficients, coarse=False):
     """Compose with the step matrix K (Dirichlet rows eliminated) of Discretisation ``d`` its
     near-nullspace, a sparse P = c_A A + c_M diag(M) and, when M x is cheaper through B
     (:func:`~sdm_dolfinx.method.masses.product`), the product of :class:`_Product` (see the
-    module). ``coefficients``: (c_M, c_A) of K = c_M M + c_A A, or None (another step matrix:
+    module); with ``coarse`` (``cg-pmg``) also the P1 interpolation and the coarse operator of
+    :func:`_coarse`. ``coefficients``: (c_M, c_A) of K = c_M M + c_A A, or None (another step matrix:
     P = K, no product). Returns the objects to keep alive."""
     ns = rigid_body_modes(d.W)
     if ns is not None and ns.getVecs()[0].getLocalSize() != K.getLocalSize()[0]:
@@ -111,4 +160,6 @@ def attach(K, d, coefficients):
             keep.append(prod)
     if ns is not None:
         P.setNearNullSpace(ns)
+    if coarse:
+        _coarse(K, d, keep)
     return keep

@@ -88,7 +88,7 @@ class Integrator:
         refused = _friction.check_solver(self.friction and self.friction.law, vi_solver, linear)
         parts_refused = self.parts.refuse(self) if self.parts else None
         refused = refused or [r for r in (_obstacles.refusal(self, ts, vi_solver, linear), self._refuse_contact(),
-                                          parts_refused,
+                                          parts_refused, _iterative.refusal(discretisation, linear, self.block),
                                           _mb.refusal(discretisation, ts, contact), ts.refuse(self)) if r]
         if refused:
             raise DiscretisationError(refused[0])
@@ -129,8 +129,8 @@ class Integrator:
             linear, why = choose_strategy(d.num_constraints, not self.block, self.K.getSize()[0],
                                           d.problem.mesh.topology.dim, d.comm, explain=True)
             self.linear_strategy, self.linear_reason = linear, f"auto: {why}"
-        if linear == "cg-gamg" and not self.block:     # GAMG's near-nullspace, P ~ K, a cheap K x
-            self._gamg = _iterative.attach(self.K, d, self.coefficients)
+        if linear in ("cg-gamg", "cg-pmg") and not self.block:     # GAMG's near-nullspace, P ~ K, a cheap K x
+            self._gamg = _iterative.attach(self.K, d, self.coefficients, coarse=linear == "cg-pmg")
         # a factorisation of K = c_M B^T D^-1 B + A is cheaper through the sparser
         # augmented matrix [A, sqrt(c_M) B^T; sqrt(c_M) B, -D] when M is much denser than A (P2/P1)
         factorised = (self.friction is not None or d.obstacle_rows is not None or d.weighted_rows is not None

@@ -103,7 +103,7 @@ def _kept_choice(out, linear, comm):
     except RunFolderError:          # the restart itself says what is missing
         return None
     chosen = info.get("linear_strategy")
-    if chosen not in ("schur", "amg", "cg-gamg"):
+    if chosen not in ("schur", "amg", "cg-gamg", "cg-pmg"):
         return None
     return chosen, f"auto, kept from the run's start ({info.get('linear_strategy_reason')})"
 

@@ -87,7 +87,7 @@ def estimate_memory(spec, values, pair, options=None, steps=0, ranks=1, inspect=
         factorised = run_bytes(dim_w, dim, factorised=True)
         if o.get("vi_solver", "ssn") != "ssn" or linear == "lu":
             need = REFACTORISING * factorised
-        elif linear in ("amg", "cg-amg", "cg-gamg"):
+        elif linear in ("amg", "cg-amg", "cg-gamg", "cg-pmg"):
             need = run_bytes(dim_w, dim, factorised=False)
         elif linear == "auto":           # auto takes cg-gamg when the factorisation does not fit
             need = min(factorised, run_bytes(dim_w, dim, factorised=False))

@@ -61,7 +61,8 @@ _LINEAR_HELP = (
     "one factorisation, CG on the inactive set; lu = refactorise at every Newton iteration; amg = CG + "
     "BoomerAMG on the reduced matrix (set up when the active set changes); cg-amg = CG on the inactive set "
     "with one BoomerAMG set-up of the step matrix; cg-gamg = CG on the inactive set with one GAMG set-up "
-    "(rigid body modes), no factorisation")
+    "(rigid body modes), no factorisation; cg-pmg = CG on the inactive set with one two-level P2 -> P1 multigrid "
+    "(Chebyshev smoothing, GAMG on P1), no factorisation, P2 only")
 _POSITIVE: dict[str, Any] = dict(type=float, low=0.0, low_strict=True, expect="a positive finite number")
 _COUNT: dict[str, Any] = dict(type=int, low=1, expect="an integer >= 1", metavar="K")
 

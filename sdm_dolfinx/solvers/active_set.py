@@ -19,7 +19,11 @@ from sdm_dolfinx.solvers.factorisation import REDUNDANT_MAX_ROWS, mumps_margins
 from sdm_dolfinx.solvers.options import ksp_reason_name, scoped_options
 
 #: linear strategies of the semi-smooth Newton (see :class:`~sdm_dolfinx.solvers.semismooth.SemismoothNewton`)
-LINEAR_STRATEGIES = ("auto", "schur", "cg-factor", "lu", "amg", "cg-amg", "cg-gamg")
+LINEAR_STRATEGIES = ("auto", "schur", "cg-factor", "lu", "amg", "cg-amg", "cg-gamg", "cg-pmg")
+
+#: the strategies that precondition CG by a multigrid of K built once per run, with no factorisation
+#: (:mod:`sdm_dolfinx.method.iterative` attaches what they need to K)
+MULTIGRID_STRATEGIES = ("cg-gamg", "cg-pmg")
 
 #: the strategies whose preconditioner is hypre's BoomerAMG
 HYPRE_STRATEGIES = ("amg", "cg-amg")
@@ -40,7 +44,7 @@ def missing_package(linear: object) -> Optional[str]:
 SCHUR_MAX_CONSTRAINTS = 10000
 
 #: the strategies that run a Krylov method on :class:`ReducedOperator` with :class:`ReducedPC`
-SHELL_STRATEGIES = ("cg-factor", "cg-amg", "cg-gamg", "schur")
+SHELL_STRATEGIES = ("cg-factor", "cg-amg", "cg-gamg", "cg-pmg", "schur")
 
 #: PETSc GAMG's default options for ``cg-gamg`` (``-<prefix>gamg_...`` overrides): smoothed
 #: aggregation with the near-nullspace (the rigid body modes,
@@ -54,6 +58,19 @@ GAMG_OPTIONS = {"pc_gamg_type": "agg", "pc_gamg_agg_nsmooths": "1", "pc_gamg_thr
 #: K as the Mat composed under PRODUCT, when there are
 #: (:func:`sdm_dolfinx.method.iterative.attach`); otherwise on K and with K
 PMAT, PRODUCT = "sdm_gamg_pmat", "sdm_fast_product"
+
+#: ``cg-pmg``: a two-level P2 -> P1 multigrid of K, preconditioning CG; its interpolation I from the
+#: vertices' P1 space into W^h and the Galerkin coarse operator I^T K I (with the rigid body modes) are
+#: composed with K under these names (:func:`sdm_dolfinx.method.iterative.attach`)
+PMG_INTERPOLATION, PMG_COARSE = "sdm_pmg_interpolation", "sdm_pmg_coarse"
+
+#: ``cg-pmg``'s default options (``-<prefix>pmg_...`` overrides): one V-cycle, two Chebyshev/Jacobi
+#: smoothing steps on K (its diagonal from the sparse P) before and after, GAMG on the coarse P1 operator
+#: (:data:`GAMG_OPTIONS`). Measured on the ball (bench/README.md, "cg-pmg"): 17-19 CG iterations at
+#: levels 1-4 where GAMG on P takes 43-69
+PMG_OPTIONS = {"pc_mg_cycle_type": "v", "mg_levels_ksp_type": "chebyshev", "mg_levels_pc_type": "jacobi",
+               "mg_levels_ksp_max_it": "2", "mg_coarse_ksp_type": "preonly", "mg_coarse_pc_type": "gamg",
+               **{"mg_coarse_" + k: v for k, v in GAMG_OPTIONS.items()}}
 
 
 def choose_strategy(num_constraints, spd, n=None, dim=2, comm=None, explain=False):
@@ -153,15 +170,15 @@ class InactiveSetSolver:
         if self.linear in SHELL_STRATEGIES:
             if self.linear in ("cg-factor", "schur"):
                 apply_P = self.fac.solve
-            elif self.linear == "cg-gamg":
-                apply_P = self._gamg_preconditioner().solve
+            elif self.linear in MULTIGRID_STRATEGIES:
+                apply_P = (self._gamg_preconditioner() if self.linear == "cg-gamg" else self._pmg_preconditioner()).solve
                 ksp.setInitialGuessNonzero(True)     # the previous iterate: fewer iterations
                 # the true residual: GAMG's preconditioned norm is ~||K||^-1 smaller (the string:
                 # 1e-12 of it left residuals of 1e-7 max|b|)
                 ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
             else:
                 apply_P = self._amg_preconditioner().solve
-            product = K.query(PRODUCT) if self.linear == "cg-gamg" else None
+            product = K.query(PRODUCT) if self.linear in MULTIGRID_STRATEGIES else None
             op = PETSc.Mat().createPython([(n, N), (n, N)], ReducedOperator(K, self.mask, product), comm=self.comm)
             op.setUp()
             self.op = op
@@ -206,6 +223,30 @@ class InactiveSetSolver:
         ka.setType("preonly")
         ka.getPC().setType("gamg")
         with scoped_options(self.prefix + "gamg_", GAMG_OPTIONS):
+            ka.setFromOptions()
+            ka.setUp()
+        self.ksp_amg = ka
+        return ka
+
+    def _pmg_preconditioner(self):
+        """One two-level P2 -> P1 multigrid of K for the whole run (``cg-pmg``; prefix ``<prefix>pmg_``,
+        defaults :data:`PMG_OPTIONS`): smoothing on K (:data:`PRODUCT`, the Jacobi diagonal from :data:`PMAT`),
+        the interpolation :data:`PMG_INTERPOLATION`, GAMG on the coarse :data:`PMG_COARSE`."""
+        interpolation, coarse = self.K.query(PMG_INTERPOLATION), self.K.query(PMG_COARSE)
+        if interpolation is None or coarse is None:
+            raise VIError("linear strategy cg-pmg needs the P2 -> P1 interpolation a run attaches to its step "
+                          "matrix (sdm_dolfinx.method.iterative.attach), and this matrix has none: choose cg-gamg")
+        ka = PETSc.KSP().create(self.comm)
+        ka.setOptionsPrefix(self.prefix + "pmg_")
+        ka.setOperators(self.K.query(PRODUCT) or self.K, self.K.query(PMAT) or self.K)
+        ka.setType("preonly")
+        pc = ka.getPC()
+        pc.setType("mg")
+        pc.setMGLevels(2)
+        pc.setMGInterpolation(1, interpolation)
+        pc.getMGSmoother(1).setOperators(self.K.query(PRODUCT) or self.K, self.K.query(PMAT) or self.K)
+        pc.getMGCoarseSolve().setOperators(coarse, coarse)
+        with scoped_options(self.prefix + "pmg_", PMG_OPTIONS):
             ka.setFromOptions()
             ka.setUp()
         self.ksp_amg = ka

@@ -139,8 +139,8 @@ def snes_reason_name(reason):
 #: instance's ``-sdm_<k>_``): their own ``vi_*``, ``schur_max_active`` and ``gap_max_columns``, the semi-smooth Newton's
 #: or PETSc's SNES (``snes_``), its linear solves (``ksp_``, ``pc_``, ``mat_``), the factorisation
 #: (``factor_``), the penalty's and the AMG strategies' Krylov solvers (``penalty_``, ``amg_``,
-#: ``gamg_``)
-OPTION_FAMILIES = ("vi_", "snes_", "ksp_", "pc_", "mat_", "factor_", "penalty_", "amg_", "gamg_")
+#: ``gamg_``, ``pmg_``)
+OPTION_FAMILIES = ("vi_", "snes_", "ksp_", "pc_", "mat_", "factor_", "penalty_", "amg_", "gamg_", "pmg_")
 _OPTION = re.compile(r"^(\d+_)?(" + "|".join(OPTION_FAMILIES) + r")\w+$|^(\d+_)?(schur_max_active|gap_max_columns)$")
 
 

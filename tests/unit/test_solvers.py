@@ -43,7 +43,7 @@ ITERATIVE_RTOL = 1e-7
 #: up to ||K|| ~ 6e4 times larger at the x rows (measured 2e-7 max|b|; x itself to 1e-10)
 GMRES_RTOL = 1e-6
 #: the strategies that solve each Newton system by a Krylov method
-KRYLOV = ("cg-factor", "amg", "cg-amg", "cg-gamg")
+KRYLOV = ("cg-factor", "amg", "cg-amg", "cg-gamg", "cg-pmg")
 
 
 # ------------------------------------------------------------------------------ problems
@@ -198,7 +198,8 @@ def solve_and_check(solver, d, problem, rtol):
 
 # ------------------------------------------------------------------------------ tests
 @pytest.mark.parametrize("linear", [pytest.param(s, marks=pytest.mark.skipif(
-    bool(missing_package(s)), reason=f"this PETSc lacks what {s} needs (hypre)")) for s in LINEAR_STRATEGIES])
+    bool(missing_package(s)), reason=f"this PETSc lacks what {s} needs (hypre)")) for s in LINEAR_STRATEGIES
+    if s != "cg-pmg"])      # it coarsens a discretisation's P2 (tests/solvers/test_pmg.py)
 def test_semismooth_newton_every_strategy(string, linear, clean_options):
     """Each linear strategy of the semi-smooth Newton solves the string's LCP (SPD)."""
     d, problem = string
@@ -210,6 +211,14 @@ def test_semismooth_newton_every_strategy(string, linear, clean_options):
     # a second step from the converged state and active set: one iteration
     assert solver.solve(d.b, d.x)["its"] == 1
     solver.destroy()
+
+
+def test_cg_pmg_on_a_bare_matrix_is_refused_in_one_line(string, clean_options):
+    """cg-pmg coarsens the P2 of a run's discretisation: a matrix without its interpolation is refused."""
+    d, _ = string
+    with pytest.raises(VIError) as e:
+        make_vi_solver("ssn", d.K, d.cdofs, d.lb, linear="cg-pmg")
+    assert "\n" not in str(e.value) and "choose cg-gamg" in str(e.value)
 
 
 @pytest.mark.parametrize("snes_type", ["vinewtonrsls", "vinewtonssls"])
