@@ -22,10 +22,9 @@ behaves as one bar striking a rigid wall at the plane of symmetry x = 0 (demos/b
 the same d), at the stress rho c v.
 
 ``--passes 2``: the node-to-surface contact in both directions, a second pair ``back`` holding bar 2's
-end vertices outside bar 1's end face (the two passes: neither face can sink into the other between
-its vertices). On matching faces (the default mesh) each row of the second pass repeats one of the
-first (the same two vertices, the opposite normal): the run is the one-pass run to the solver's
-tolerance, the force split equally between the two pairs (docs/contact.md, "Two passes").
+end vertices outside bar 1's end face (the two passes: the vertices of both faces held). On matching
+faces (the default mesh) each row of the second pass repeats one of the first (the same two vertices,
+the opposite normal): the run is the one-pass run to the solver's tolerance, the force split equally between the two pairs (docs/contact.md, "Two passes").
 
 The time series has each bar's columns (``bodies``): ``momentum_striker_x``, ``kinetic_striker``,
 ``elastic_striker`` and the struck bar's, and the pair's ``contact_force_ends``.

@@ -7,7 +7,8 @@ rho = 1e-6 t/mm^3, the gmsh mesh of ``--level``) and its mirror image in the pla
 of two connected parts: disc 1 centred at (0, R + d) moving down at v, disc 2 centred at (0, -R - d)
 moving up at v, no gravity. Contact pair: the vertices of disc 1's lower half (slave) stay outside
 disc 2's upper half (master), frictionless; ``--passes 2`` adds the pair ``back`` (disc 2's upper
-vertices outside disc 1's lower half: neither face sinks into the other between its vertices).
+vertices outside disc 1's lower half: the vertices of both faces held; a P2 face still sinks between its
+vertices, which ``--constrain weighted`` holds on average).
 
 By symmetry each disc behaves as the built-in disc falling at v onto the rigid foundation y = 0 from
 the height d without gravity (``python -m sdm_dolfinx disc --gravity 0 --height d --v0 -v``), whose

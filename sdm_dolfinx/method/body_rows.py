@@ -230,8 +230,9 @@ class BodyRows:
     def node_rows(self, u: Array, x: Array, dofs: Array, member: Any, key: Any) -> tuple[Any, ...]:
         """The node-to-surface rows of the points at reference ``x`` (3, n) with dofs ``dofs`` (n, gdim) held by
         the pairs ``member`` (pairs, n) in the state ``u`` (collective): ids (n, k) global dofs, values (n, k),
-        g (n,) (-inf: no master point, a row of zeros), the pair of each (-1: none), the entries' weights
-        (1 at the slave's, -xi_v at the master's) and the normals n (n, gdim)."""
+        g (n,), the pair of each (-1: none), the entries' weights (1 at the slave's, -xi_v at the master's) and
+        the normals n (n, gdim). A point without a master point has a row of zeros and a zero normal: g -inf
+        when no pair holds it, finite (minus its distance) when its closest point is beyond the rim."""
         phi, per_pair = self._closest(u, x, dofs, member, key=key)
         m, g = len(dofs), self.gdim
         width = g + max((s.at.shape[1] * g for s in self.surfaces), default=0)

@@ -17,8 +17,15 @@ is an average and its multiplier a nodal force, as the vertex rows' (the columns
 entries -xi_v n_j, sum_v xi_v = 1), so is every G_i: the contact conserves the total momentum exactly.
 A gap that is linear along the slave face meets every row exactly where it meets the nodes' rows (a flat
 face pressed flat onto a flat master face: the contact patch test). A node j whose point has no master
-point (beyond the master's rim) is left out of the rows it enters, the others' weights renormalised; a
-row none of whose nodes has one holds nothing this step.
+point (beyond the master's rim: its node-to-surface row is zero) is left out of the rows it enters, the
+others' weights renormalised; a row none of whose nodes has one holds nothing this step. Dirichlet data on
+the slave faces' nodes: refused in one line (the vertex rows drop such a vertex).
+
+**Columns.** ``gap_imposed`` (``min_gap_imposed``) is the rows' value at the constrained iterate: here the
+weighted (averaged) gap, as with the rigid plane's weighted rows; ``gap_min_boundary`` stays the nodes'
+own distances. A row's multiplier is credited to the pair of its largest weight (``contact_force_<pair>``):
+exact where the pairs' slave faces do not share a vertex (every demo); a vertex whose hat function spans
+two pairs' slave facets mixes their gaps in one row (not refused, not tested).
 
 **Parallel.** A node's row is built by the rank that owns the node (as the time series' boundary gaps),
 the weights w_ij are the columns of the assembled boundary matrix int psi_i phi_j ds that this rank owns
@@ -90,6 +97,12 @@ class WeightedBodyRows(BodyRows):
         if stray:
             raise DiscretisationError(f"{label(p)}: constrain='weighted': {stray} slave vertices' P1 dofs are owned by "
                                       f"another rank than their W^h dofs (internal error); use constrain='vertices'")
+        fixed = self.comm.allreduce(int(np.count_nonzero(np.isin(self._ndofs, np.asarray(d.ddofs, dtype=np.int64)))),
+                                    op=MPI.SUM)
+        if fixed:           # their rows would read Dirichlet dofs as unknowns
+            raise DiscretisationError(f"{label(p)}: constrain='weighted': {fixed} components of the slave faces' nodes "
+                                      f"carry Dirichlet data (dirichlet_facets), which the weighted gap between bodies "
+                                      f"does not take yet: use constrain='vertices'")
         self.read = np.unique(np.concatenate([self.read, *self.comm.allgather(self._ndofs.reshape(-1) + self._lo)]))
 
     def rows(self, u: Any, t0: float, t1: float, weight: float,
@@ -97,7 +110,8 @@ class WeightedBodyRows(BodyRows):
         """The weighted rows (the format of :meth:`.body_rows.BodyRows.rows`; collective)."""
         ids, vals, g, pair, wts, normals = self.node_rows(u, self._nx, self._ndofs, self._nmember, "nodes")
         node, vertex, w = self._entries
-        live = np.isfinite(g[node])                      # a node without a master point enters no row
+        # a node without a master point (no pair's, or beyond the master's rim: a zero normal) enters no row
+        live = np.isfinite(g[node]) & np.any(normals[node] != 0.0, axis=1)
         node, vertex, w, owner = node[live], vertex[live], w[live], self._owner[live]
         k, gd = ids.shape[1], self.gdim
         send = []

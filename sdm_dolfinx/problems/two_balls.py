@@ -12,7 +12,8 @@ materials and densities per cell (DG0), no gravity. Contact pair: the vertices o
 hemisphere (slave) stay outside ball 2's upper hemisphere (master), frictionless or (``--friction``)
 with friction on their relative slip; ``--vt`` gives ball 1 a velocity across the line of centres.
 ``--passes 2`` adds the pair ``back`` (ball 2's upper vertices outside ball 1's lower hemisphere: on
-unequal meshes neither face sinks into the other between its vertices).
+unequal meshes the vertices of both faces held; a P2 face still sinks between its vertices, which
+``--constrain weighted`` holds on average).
 
 Hertz for two elastic spheres (:func:`hertz_two`): the curvatures add, 1/R* = 1/R1 + 1/R2, the
 compliances add, 1/E* = (1 - nu1^2)/E1 + (1 - nu2^2)/E2, the masses combine into the reduced mass

@@ -93,3 +93,44 @@ def test_the_weighted_tangential_rows_have_no_resultant_and_one_frame_a_row():
     np.testing.assert_allclose(np.where(ids % 2 == 0, vals[1], 0.0), 0.0, atol=1e-14)
     np.testing.assert_allclose(np.sort(np.abs(vals[1]), axis=1)[:, -1], np.sort(np.abs(normal), axis=1)[:, -1],
                                atol=1e-14)
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("pair", ["P2/P1", "P1+/P0"])
+def test_nodes_beyond_the_masters_rim_leave_the_weighted_rows(pair):
+    """The slave face pushed 0.01 mm into the master's plane and slid up by 8 mm: only its bottom vertex
+    (y = 0, now at y = 8 on the 10 mm master face) is on the master, and it penetrates. The nodes beyond the
+    rim (their closest point on the master's top corner) have no master point: they leave the rows, so the
+    rows around the bottom vertex read its gap, -0.01, and the rows of nodes all beyond the rim hold nothing
+    (g = -inf). Before, those nodes entered with their distances to the corner and every row was positive."""
+    p = load_file(DEMOS / "two_bars_problem.py").problem(COMM, Nx=4, Ny=2, Ny1=3)
+    gap = p.parameters["gap"]
+    d = Discretisation(p, pair, constrain="weighted")
+    bs, n = d.W.dofmap.index_map_bs, d.W.dofmap.index_map.size_local
+    x = d._dof_x()[:n]
+    u = np.zeros((n, bs))
+    u[x[:, 0] < 0.0] = (gap + 0.01, 8.0)
+    u = u.reshape(-1)
+    got, _, _ = _row_values(d.body_rows, u, np.concatenate(COMM.allgather(u)))
+    (_, _), g = d.body_rows.rows(u, 0.0, 1e-6, 0.5)
+    y = np.asarray(d.cx)[1]
+    held = np.isfinite(g)
+    assert COMM.allreduce(int(np.count_nonzero(held)), op=MPI.SUM) == 2        # the vertices at y = 0 and 3.33
+    np.testing.assert_allclose(got[held], -0.01, atol=1e-12 * p.parameters["L"])
+    assert np.all(y[~held] > 5.0)
+
+
+def test_dirichlet_data_on_the_slave_face_is_refused_in_one_line():
+    """The striker's bottom edge y = 0 clamped: a slave vertex and its face's nodes carry Dirichlet data,
+    which the vertex rows drop and the weighted rows would read as unknowns: refused when the rows are built."""
+    import dataclasses
+    from sdm_dolfinx.method.errors import DiscretisationError
+    from sdm_dolfinx.problems import facets_where
+    p = load_file(DEMOS / "two_bars_problem.py").problem(COMM, Nx=4, Ny=2, Ny1=3)
+    p = dataclasses.replace(p, dirichlet_facets=facets_where(lambda x: np.isclose(x[1], 0.0) & (x[0] < 0)),
+                            dirichlet_value=lambda x: np.zeros((2, x.shape[1])))
+    Discretisation(p, "P2/P1")                              # the vertex rows take it
+    with pytest.raises(DiscretisationError) as e:
+        Discretisation(p, "P2/P1", constrain="weighted")
+    text = str(e.value)
+    assert "\n" not in text and "carry Dirichlet data" in text and "use constrain='vertices'" in text
