@@ -111,7 +111,7 @@ def _kept_choice(out, linear, comm):
 def _factor_package(integ):
     """The sparse direct solver of the step solver's one factorisation for the run ("cholmod",
     "mumps" or "petsc": :func:`~sdm_dolfinx.solvers.factorisation.factor_package`, what this PETSc
-    has), or None when its strategy keeps none (``amg``, ``cg-gamg``, ``lu``, SNES VI)."""
+    has), or None when its strategy keeps none (``amg``, ``cg-gamg``, ``cg-pmg``, ``lu``, SNES VI)."""
     fac = getattr(getattr(integ, "solver", None), "fac", None)
     return getattr(fac, "package", None)
 

@@ -89,7 +89,7 @@ def estimate_memory(spec, values, pair, options=None, steps=0, ranks=1, inspect=
             need = REFACTORISING * factorised
         elif linear in ("amg", "cg-amg", "cg-gamg", "cg-pmg"):
             need = run_bytes(dim_w, dim, factorised=False)
-        elif linear == "auto":           # auto takes cg-gamg when the factorisation does not fit
+        elif linear == "auto":           # auto takes cg-pmg or cg-gamg when the factorisation does not fit
             need = min(factorised, run_bytes(dim_w, dim, factorised=False))
         else:
             need = factorised

@@ -56,7 +56,7 @@ def _check_pair(value: Any, label: str) -> list[str]:
 
 _LINEAR_HELP = (
     "linear solves of the semi-smooth Newton: auto = schur, or amg above 10000 constrained dofs, or in 3-D "
-    "cg-gamg when a factorisation would not fit in memory (default); schur = one factorisation of the step "
+    "cg-pmg (W^h = P2) or cg-gamg when a factorisation would not fit in memory (default); schur = one factorisation of the step "
     "matrix per run, the active set by a small dense Schur complement of cached columns K^-1 e_i; cg-factor = "
     "one factorisation, CG on the inactive set; lu = refactorise at every Newton iteration; amg = CG + "
     "BoomerAMG on the reduced matrix (set up when the active set changes); cg-amg = CG on the inactive set "

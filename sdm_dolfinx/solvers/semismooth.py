@@ -57,9 +57,13 @@ class SemismoothNewton:
               (the hierarchy from the sparse P and the rigid body modes that
               :func:`sdm_dolfinx.method.iterative.attach` composes with K; K's own otherwise):
               no factorisation, for 3-D sizes whose factor does not fit.
+            * ``"cg-pmg"``: CG on the inactive set preconditioned by one two-level P2 -> P1
+              multigrid of K (the interpolation and coarse operator that
+              :func:`sdm_dolfinx.method.iterative.attach` composes with K; refused without them).
             * ``"auto"``: :func:`choose_strategy` (``schur`` unless there are many
               constrained dofs; the integrator also passes the dimension and size: in 3-D
-              ``cg-gamg`` when a factorisation would not fit in memory).
+              ``cg-gamg`` when a factorisation would not fit in memory, which the integrator
+              makes ``cg-pmg`` where W^h is P2).
         prefix: PETSc options prefix of this instance (same on every rank); None: a new
             ``sdm_<k>_`` (:func:`~sdm_dolfinx.solvers.options.instance_prefix`). Options
             under it, then the shared ``-sdm_...`` ones, override ``options``.

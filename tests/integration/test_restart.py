@@ -266,7 +266,7 @@ def test_restart_continues_the_disc_exactly(mpi_tmp_path):
 def test_restart_keeps_autos_memory_choice(mpi_tmp_path, monkeypatch):
     """In 3-D ``auto`` factorises only when the memory free at the start allows: a restart with
     (here: pretended) no memory left continues with the run's ``schur``, as the uninterrupted run
-    did, where a new run would take ``cg-gamg``; the rows match the uninterrupted run's."""
+    did, where a new run would take ``cg-pmg``; the rows match the uninterrupted run's."""
     from sdm_dolfinx.problems import ball
     from sdm_dolfinx.solvers import memory
     kw = dict(pair="P2/P1", dt=4e-5, T=14 * 4e-5)
@@ -279,7 +279,7 @@ def test_restart_keeps_autos_memory_choice(mpi_tmp_path, monkeypatch):
         simulate(make(), out=mpi_tmp_path / "cut", checkpoint_every=4, on_step=lambda n, row: n == 9, **kw)
     assert type(e.value).__name__ == "Interrupted"
     monkeypatch.setattr(memory, "available_per_rank", lambda comm=None: 1.0)
-    assert simulate(make(), pair="P2/P1", dt=4e-5, T=4e-5).info["linear_strategy"] == "cg-gamg"
+    assert simulate(make(), pair="P2/P1", dt=4e-5, T=4e-5).info["linear_strategy"] == "cg-pmg"
     r = simulate(make(), out=mpi_tmp_path / "cut", checkpoint_every=4, restart=True, **kw)
     assert r.info["linear_strategy"] == "schur" and "kept from the run's start" in r.info["linear_strategy_reason"]
     assert r.timeseries["n_active"][-1] > 0                                 # the restart ran in contact

@@ -35,7 +35,7 @@ print(json.dumps({{"rss": float(hwm) * 1024.0, "strategy": r.info["linear_strate
 @pytest.mark.slow           # a fresh process each: ~9 s at load 3.5
 @pytest.mark.skipif(MPI.COMM_WORLD.size > 1 or not os.path.exists("/proc/self/status"),
                     reason="one fresh serial process; Linux's /proc")
-@pytest.mark.parametrize("linear", ["auto", "cg-gamg"])
+@pytest.mark.parametrize("linear", ["auto", "cg-gamg", "cg-pmg"])
 def test_estimate_is_within_a_factor_of_the_measured_peak(linear):
     out = subprocess.run([sys.executable, "-c", CHILD.format(linear=linear)], capture_output=True, text=True,
                          check=True).stdout
@@ -44,5 +44,5 @@ def test_estimate_is_within_a_factor_of_the_measured_peak(linear):
     spec = get("ball")
     est, dim_w = estimate_memory(spec, spec.values({"level": 1}), "P2/P1", {"linear": linear}, steps=3)
     assert est / FACTOR <= got["rss"] <= est * FACTOR, (est, dim_w, got["rss"])
-    fit = BYTES_PER_PROCESS + run_bytes(got["dim_W"], 3, factorised=linear != "cg-gamg")
+    fit = BYTES_PER_PROCESS + run_bytes(got["dim_W"], 3, factorised=linear not in ("cg-gamg", "cg-pmg"))
     assert fit / FIT_FACTOR <= got["rss"] <= fit * FIT_FACTOR, (fit, got["rss"])
