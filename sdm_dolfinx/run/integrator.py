@@ -128,14 +128,11 @@ class Integrator:
         if linear == "auto":
             linear, why = choose_strategy(d.num_constraints, not self.block, self.K.getSize()[0],
                                           d.problem.mesh.topology.dim, d.comm, explain=True)
-            if linear == "cg-gamg" and _iterative.refusal(d, "cg-pmg", self.block) is None:
-                linear, why = "cg-pmg", (f"{why}; cg-pmg, as W^h = P2 coarsens to the vertices' P1 (the ball: 3.3-3.8 "
-                                         f"times faster than cg-gamg per contact step, bench/README.md)")
+            linear, why = _iterative.prefer_pmg(d, linear, why, self.block)     # P2: cg-gamg -> cg-pmg
             self.linear_strategy, self.linear_reason = linear, f"auto: {why}"
         if linear in ("cg-gamg", "cg-pmg") and not self.block:     # GAMG's near-nullspace, P ~ K, a cheap K x
             self._gamg = _iterative.attach(self.K, d, self.coefficients, coarse=linear == "cg-pmg")
-        # a factorisation of K = c_M B^T D^-1 B + A is cheaper through the sparser
-        # augmented matrix [A, sqrt(c_M) B^T; sqrt(c_M) B, -D] when M is much denser than A (P2/P1)
+        # K = c_M B^T D^-1 B + A factorised through the sparser [A, sqrt(c_M) B^T; sqrt(c_M) B, -D] (P2/P1)
         factorised = (self.friction is not None or d.obstacle_rows is not None or d.weighted_rows is not None
                       or d.body_rows is not None or (vi_solver == "ssn" and linear in ("schur", "cg-factor")))
         self.factor_matrix = None

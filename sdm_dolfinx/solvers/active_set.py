@@ -171,7 +171,8 @@ class InactiveSetSolver:
             if self.linear in ("cg-factor", "schur"):
                 apply_P = self.fac.solve
             elif self.linear in MULTIGRID_STRATEGIES:
-                apply_P = (self._gamg_preconditioner() if self.linear == "cg-gamg" else self._pmg_preconditioner()).solve
+                multigrid = self._gamg_preconditioner() if self.linear == "cg-gamg" else self._pmg_preconditioner()
+                apply_P = multigrid.solve
                 ksp.setInitialGuessNonzero(True)     # the previous iterate: fewer iterations
                 # the true residual: GAMG's preconditioned norm is ~||K||^-1 smaller (the string:
                 # 1e-12 of it left residuals of 1e-7 max|b|)
