@@ -225,7 +225,7 @@ class BodyRows:
         self.pair_of_row[:] = pair
         if not tangential:
             return (ids, vals), g
-        return (ids, tangential_rows(vals, weights, normals, (ids - self._lo) % self.gdim)), g
+        return (ids, tangential_rows(vals, weights, normals, ids % self.gdim)), g
 
     def node_rows(self, u: Array, x: Array, dofs: Array, member: Any, key: Any) -> tuple[Any, ...]:
         """The node-to-surface rows of the points at reference ``x`` (3, n) with dofs ``dofs`` (n, gdim) held by

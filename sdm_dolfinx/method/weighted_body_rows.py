@@ -49,6 +49,7 @@ import ufl
 from sdm_dolfinx import compat
 from sdm_dolfinx.method.body_rows import BodyRows, tangential_rows
 from sdm_dolfinx.method.contact_boundary import contact_measure
+from sdm_dolfinx.method.dofs import where_least
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.problems.base import label
 
@@ -104,6 +105,18 @@ class WeightedBodyRows(BodyRows):
                                       f"carry Dirichlet data (dirichlet_facets), which the weighted gap between bodies "
                                       f"does not take yet: use constrain='vertices'")
         self.read = np.unique(np.concatenate([self.read, *self.comm.allgather(self._ndofs.reshape(-1) + self._lo)]))
+
+    def phi(self, u: Any, t: float = 0.0, boundary: bool = False) -> Any:
+        """As :meth:`.body_rows.BodyRows.phi`; ``boundary``: every node of the slave faces once, against every
+        pair it is on (the rows' own projection, key "nodes": the time series' boundary gaps of U^{n+1} are the
+        next step's rows' projection, made once). Its minimum and where it is are the per-pair nodes' ones."""
+        if not boundary:
+            return super().phi(u, t)
+        return self._closest(u, self._nx, self._ndofs, self._nmember, key="nodes")[0]
+
+    def where(self, u: Any, t: float = 0.0) -> Any:
+        """The reference coordinates (gdim,) of the slave faces' node nearest to its master surface."""
+        return where_least(self.comm, self.phi(u, t, boundary=True), self._nx)[:self.gdim]
 
     def rows(self, u: Any, t0: float, t1: float, weight: float,
              tangential: bool = False) -> tuple[tuple[Any, Any], Any]:

@@ -237,15 +237,16 @@ class InactiveSetSolver:
         if interpolation is None or coarse is None:
             raise VIError("linear strategy cg-pmg needs the P2 -> P1 interpolation a run attaches to its step "
                           "matrix (sdm_dolfinx.method.iterative.attach), and this matrix has none: choose cg-gamg")
+        operators = (self.K.query(PRODUCT) or self.K, self.K.query(PMAT) or self.K)    # K's cheap product, P
         ka = PETSc.KSP().create(self.comm)
         ka.setOptionsPrefix(self.prefix + "pmg_")
-        ka.setOperators(self.K.query(PRODUCT) or self.K, self.K.query(PMAT) or self.K)
+        ka.setOperators(*operators)
         ka.setType("preonly")
         pc = ka.getPC()
         pc.setType("mg")
         pc.setMGLevels(2)
         pc.setMGInterpolation(1, interpolation)
-        pc.getMGSmoother(1).setOperators(self.K.query(PRODUCT) or self.K, self.K.query(PMAT) or self.K)
+        pc.getMGSmoother(1).setOperators(*operators)
         pc.getMGCoarseSolve().setOperators(coarse, coarse)
         with scoped_options(self.prefix + "pmg_", PMG_OPTIONS):
             ka.setFromOptions()
