@@ -41,7 +41,8 @@ from dolfinx import fem, mesh as dmesh
 
 from sdm_dolfinx import compat
 from sdm_dolfinx.compat.mesh import create_mesh, mesh_geometry_dofmap
-from sdm_dolfinx.problems import Body, ContactPair, Param, Problem, ProblemSpec, cells_where, facets_where
+from sdm_dolfinx.problems import (Body, ContactPair, Param, Problem, ProblemSpec, cells_where, facets_where,
+                                  slave_facets)
 
 
 def _rectangle(d, L, H, Nx, Ny):
@@ -86,8 +87,7 @@ def build(comm, L, H, E, rho, v, v2, Nx, Ny, Ny1, gap_time, passes):
     pairs = [ContactPair(slave=facets(-d, -1), master=facets(d, 1), name="ends")]
     if passes == 2:
         pairs.append(ContactPair(slave=facets(d, 1), master=facets(-d, -1), name="back"))
-    slave = np.concatenate([np.asarray(pair.slave(msh), dtype=np.int32) for pair in pairs])
-    slave = np.unique(slave)
+    slave = slave_facets(pairs, msh)
     tags = dmesh.meshtags(msh, fdim, slave, np.full(len(slave), 1, dtype=np.int32))
     ds_slave = ufl.Measure("ds", domain=msh, subdomain_data=tags)(1)     # every pair's slave facets
     zero = fem.Constant(msh, PETSc.ScalarType((0.0, 0.0)))

@@ -29,7 +29,7 @@ from dolfinx import fem, mesh as dmesh
 
 from sdm_dolfinx import compat
 from sdm_dolfinx.compat.mesh import create_mesh, mesh_geometry_dofmap
-from sdm_dolfinx.problems import ContactPair, Param, Problem, ProblemSpec, facets_where
+from sdm_dolfinx.problems import ContactPair, Param, Problem, ProblemSpec, facets_where, slave_facets
 from sdm_dolfinx.problems.disc import sigma
 from sdm_dolfinx.problems.disc_mesh import LEVELS, make_mesh
 
@@ -62,7 +62,7 @@ def build(comm, level, radius, height, rho, lame_lambda, lame_mu, v, passes):
     pairs = [ContactPair(slave=half(True), master=half(False), name="discs")]
     if passes == 2:
         pairs.append(ContactPair(slave=half(False), master=half(True), name="back"))
-    slave = np.unique(np.concatenate([np.asarray(pair.slave(msh), dtype=np.int32) for pair in pairs]))
+    slave = slave_facets(pairs, msh)
     ds_c = ufl.Measure("ds", domain=msh, subdomain_data=dmesh.meshtags(
         msh, fdim, slave, np.ones(len(slave), dtype=np.int32)))(1)
     zero = fem.Constant(msh, PETSc.ScalarType((0.0, 0.0)))

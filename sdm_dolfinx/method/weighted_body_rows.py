@@ -52,6 +52,7 @@ from sdm_dolfinx.method.contact_boundary import contact_measure
 from sdm_dolfinx.method.dofs import where_least
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.problems.base import label
+from sdm_dolfinx.problems.contact_pairs import slave_facets
 
 #: the quadrature degree of int psi_i phi_j ds (degree 3 for P2 on straight facets), as :mod:`.weighted_rows`
 QUADRATURE_DEGREE = 4
@@ -74,9 +75,7 @@ class WeightedBodyRows(BodyRows):
         self._nx = d._dof_x()[blocks].T.copy()
         self._nmember = np.array([np.isin(blocks, dofs[:, 0] // bs) for dofs, _ in self._bnodes])
         # w_ij: int_S psi_i phi_j ds, transposed (its rows: the W^h dofs, owned as the nodes are)
-        facets = np.unique(np.concatenate([np.asarray(pair.slave(msh), dtype=np.int32)
-                                           for pair in p.contact_pairs])).astype(np.int32)
-        ds = contact_measure(d, facets, QUADRATURE_DEGREE)
+        ds = contact_measure(d, slave_facets(p.contact_pairs, msh), QUADRATURE_DEGREE)
         q, u = ufl.TestFunction(d.Q1), ufl.TrialFunction(W)
         full = compat.assemble_matrix(d.form(q * u[0] * ds))
         transposed = full.transpose()

@@ -8,10 +8,11 @@ problem file a user loads
 """
 from sdm_dolfinx.problems.base import Body, ContactPair, DirichletPart, Param, Problem, ProblemInputError, ProblemSpec  # noqa: F401
 from sdm_dolfinx.problems.selectors import cells_where, facets_where  # noqa: F401
+from sdm_dolfinx.problems.contact_pairs import slave_facets  # noqa: F401
 from sdm_dolfinx.problems.registry import get, load_file, names, rebuild, register, resolve, spec_of_run  # noqa: F401
 from sdm_dolfinx.problems import ball, bar, block, disc, membrane, rod1d, two_balls  # noqa: E402
 
-__all__ = ["Body", "ContactPair", "cells_where", "facets_where", "DirichletPart", "Param", "Problem", "ProblemInputError", "ProblemSpec", "get", "load_file", "names",
+__all__ = ["Body", "ContactPair", "cells_where", "facets_where", "DirichletPart", "Param", "Problem", "ProblemInputError", "ProblemSpec", "get", "load_file", "names", "slave_facets",
            "rebuild", "register", "resolve", "spec_of_run", "ball", "bar", "block", "disc", "membrane", "rod1d",
            "two_balls"]
 

@@ -47,6 +47,13 @@ class ContactPair:
         return {"name": self.name, "kind": "node-to-surface (slave vertices on the master facets; friction: the run's)"}
 
 
+def slave_facets(pairs: Sequence[ContactPair], mesh: Mesh) -> npt.NDArray[np.int32]:
+    """The local facets of every pair's slave side (sorted, unique): where a Problem with several pairs (or
+    two passes) integrates its ``constraint_measure``, and the weighted gap its weights."""
+    return np.unique(np.concatenate([np.asarray(pair.slave(mesh), dtype=np.int32) for pair in pairs]
+                                    + [np.zeros(0, dtype=np.int32)])).astype(np.int32)
+
+
 def slave_vertices(pairs: Sequence[ContactPair], mesh: Mesh) -> npt.NDArray[np.int32]:
     """The local vertices of the slave facets of every pair (sorted, unique).
 

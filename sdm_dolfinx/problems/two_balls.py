@@ -42,6 +42,7 @@ from sdm_dolfinx.compat.mesh import create_mesh, mesh_geometry_dofmap
 from sdm_dolfinx.problems import ball, ball_mesh
 from sdm_dolfinx.problems.base import Body, ContactPair, Param, Problem, ProblemSpec
 from sdm_dolfinx.problems.selectors import cells_where, facets_where
+from sdm_dolfinx.problems.contact_pairs import slave_facets
 
 
 def hertz_two(R1, E1, nu1, rho1, v1, R2, E2, nu2, rho2, v2):
@@ -107,7 +108,7 @@ def build(comm, level, radius, height, E, nu, rho, v, R2, E2, nu2, rho2, v2, vt,
     pairs = [ContactPair(slave=half(True), master=half(False), name="balls")]
     if passes == 2:
         pairs.append(ContactPair(slave=half(False), master=half(True), name="back"))
-    slave = np.unique(np.concatenate([np.asarray(pair.slave(msh), dtype=np.int32) for pair in pairs]))
+    slave = slave_facets(pairs, msh)
     ds_c = ufl.Measure("ds", domain=msh, subdomain_data=dmesh.meshtags(
         msh, fdim, slave, np.ones(len(slave), dtype=np.int32)))(1)
     zero = fem.Constant(msh, PETSc.ScalarType((0.0, 0.0, 0.0)))
