@@ -306,7 +306,7 @@ def _rules(o: Mapping[str, Any], label: Mapping[str, str]) -> list[str]:
                       f"steps that a checkpoint does not hold (it cannot restart)")
     if o.get("friction") in _friction.LAWS:
         errors += _friction.check_solver(o.get("friction"), o.get("vi_solver"), o.get("linear"))
-    errors += _treatment_solver(o, label)
+    errors += _treatment_solver(o, label) or _snes_linear(o, label)
     missing = missing_package(o.get("linear"))
     if missing and o.get("vi_solver") in (None, "ssn"):
         errors.append(f"{label['linear']} {o['linear']} {missing}")
@@ -377,6 +377,15 @@ def _treatment_solver(o: Mapping[str, Any], label: Mapping[str, str]) -> list[st
         errors.append(f"{label['linear']} {o['linear']}: contact {contact} solves its steps through one factorisation "
                       f"of the step matrix (schur); remove {label['linear']}")
     return errors
+
+
+def _snes_linear(o: Mapping[str, Any], label: Mapping[str, str]) -> list[str]:
+    """PETSc's SNES VI solvers factorise their own Newton systems (MUMPS Cholesky or LU; ``-sdm_ksp_*``,
+    ``-sdm_pc_*``): a linear strategy of the semi-smooth Newton would be ignored (and run.json would name it)."""
+    if o.get("vi_solver") in (None, "ssn") or o.get("linear") in (None, "auto", "lu"):
+        return []
+    return [f"{label['vi_solver']} {o['vi_solver']!r} takes {label['linear']} 'auto' or 'lu' only: it factorises its "
+            f"own Newton systems (MUMPS), and {o['linear']} is a strategy of the semi-smooth Newton (vi_solver ssn)"]
 
 
 def _check_whole_steps(T: float, dt: float) -> list[str]:

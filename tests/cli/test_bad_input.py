@@ -108,6 +108,9 @@ BAD = [
     (["membrane", "--contact", "penalty", "--vi-solver", "vinewtonssls"], None, "remove --vi-solver"),
     (["disc", "--contact", "nitsche", "--vi-solver", "vinewtonrsls"], None, "remove --vi-solver"),
     (["membrane", "--contact", "penalty", "--linear", "amg"], None, "--linear amg: contact penalty solves its steps"),
+    (["disc", "--vi-solver", "vinewtonrsls", "--linear", "cg-pmg"], None,
+     "--vi-solver 'vinewtonrsls' takes --linear 'auto' or 'lu' only"),
+    (["membrane", "--vi-solver", "vinewtonssls", "--linear", "schur"], None, "and schur is a strategy of the semi"),
     (["membrane", "-sdm_bogus_option", "1"], None, "PETSc option -sdm_bogus_option: no step solver reads it"),
     (["membrane", "-sdm_2_bogus"], None, "PETSc option -sdm_2_bogus: no step solver reads it"),
 ]
