@@ -31,6 +31,7 @@ from sdm_dolfinx.method import quadrature
 from sdm_dolfinx.method.discretisation import CONSTRAIN
 from sdm_dolfinx.method.pairs import MASS_TREATMENTS, PAIRS, Pair, get_pair
 from sdm_dolfinx.params import Param, RunOption
+from sdm_dolfinx.run import solver_rules
 from sdm_dolfinx.run.result import num_steps
 from sdm_dolfinx.solvers import LINEAR_STRATEGIES, VI_SOLVERS
 from sdm_dolfinx.solvers.active_set import missing_package
@@ -306,7 +307,7 @@ def _rules(o: Mapping[str, Any], label: Mapping[str, str]) -> list[str]:
                       f"steps that a checkpoint does not hold (it cannot restart)")
     if o.get("friction") in _friction.LAWS:
         errors += _friction.check_solver(o.get("friction"), o.get("vi_solver"), o.get("linear"))
-    errors += _treatment_solver(o, label) or _snes_linear(o, label)
+    errors += solver_rules.treatment_solver(o, label) or solver_rules.snes_linear(o, label)
     missing = missing_package(o.get("linear"))
     if missing and o.get("vi_solver") in (None, "ssn"):
         errors.append(f"{label['linear']} {o['linear']} {missing}")
@@ -361,31 +362,6 @@ def _time_rules(T: Any, dt: Any, label: Mapping[str, str]) -> list[str]:
         return [f"T / dt = {T / dt:.3g} steps: at most {MAX_STEPS:.0e} (the time series alone would take "
                 f"{T / dt * 100 / 1e9:.3g} GB)"]
     return _check_whole_steps(T, dt)
-
-
-def _treatment_solver(o: Mapping[str, Any], label: Mapping[str, str]) -> list[str]:
-    """A contact treatment other than the exact one brings its own step solver (a Newton method on
-    its equation, one factorisation of the step matrix): a step-solver choice would be ignored."""
-    contact = o.get("contact")
-    if contact in (None, "exact"):
-        return []
-    errors = []
-    if o.get("vi_solver") not in (None, "ssn"):
-        errors.append(f"{label['vi_solver']} {o['vi_solver']} solves the variational inequality of contact exact; "
-                      f"contact {contact} has its own step solver: remove {label['vi_solver']}")
-    if o.get("linear") not in (None, "auto", "schur"):
-        errors.append(f"{label['linear']} {o['linear']}: contact {contact} solves its steps through one factorisation "
-                      f"of the step matrix (schur); remove {label['linear']}")
-    return errors
-
-
-def _snes_linear(o: Mapping[str, Any], label: Mapping[str, str]) -> list[str]:
-    """PETSc's SNES VI solvers factorise their own Newton systems (MUMPS Cholesky or LU; ``-sdm_ksp_*``,
-    ``-sdm_pc_*``): a linear strategy of the semi-smooth Newton would be ignored (and run.json would name it)."""
-    if o.get("vi_solver") in (None, "ssn") or o.get("linear") in (None, "auto", "lu"):
-        return []
-    return [f"{label['vi_solver']} {o['vi_solver']!r} takes {label['linear']} 'auto' or 'lu' only: it factorises its "
-            f"own Newton systems (MUMPS), and {o['linear']} is a strategy of the semi-smooth Newton (vi_solver ssn)"]
 
 
 def _check_whole_steps(T: float, dt: float) -> list[str]:

@@ -1,0 +1,31 @@
+"""Which step-solver options a run cannot combine (:mod:`sdm_dolfinx.run.options` checks them with the
+others): a choice that the solver actually used would ignore is refused, never recorded and dropped."""
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+
+def treatment_solver(o: Mapping[str, Any], label: Mapping[str, str]) -> list[str]:
+    """A contact treatment other than the exact one brings its own step solver (a Newton method on
+    its equation, one factorisation of the step matrix): a step-solver choice would be ignored."""
+    contact = o.get("contact")
+    if contact in (None, "exact"):
+        return []
+    errors = []
+    if o.get("vi_solver") not in (None, "ssn"):
+        errors.append(f"{label['vi_solver']} {o['vi_solver']} solves the variational inequality of contact exact; "
+                      f"contact {contact} has its own step solver: remove {label['vi_solver']}")
+    if o.get("linear") not in (None, "auto", "schur"):
+        errors.append(f"{label['linear']} {o['linear']}: contact {contact} solves its steps through one factorisation "
+                      f"of the step matrix (schur); remove {label['linear']}")
+    return errors
+
+
+def snes_linear(o: Mapping[str, Any], label: Mapping[str, str]) -> list[str]:
+    """PETSc's SNES VI solvers factorise their own Newton systems (MUMPS Cholesky or LU; ``-sdm_ksp_*``,
+    ``-sdm_pc_*``): a linear strategy of the semi-smooth Newton would be ignored (and run.json would name it)."""
+    if o.get("vi_solver") in (None, "ssn") or o.get("linear") in (None, "auto", "lu"):
+        return []
+    return [f"{label['vi_solver']} {o['vi_solver']!r} takes {label['linear']} 'auto' or 'lu' only: it factorises its "
+            f"own Newton systems (MUMPS), and {o['linear']} is a strategy of the semi-smooth Newton (vi_solver ssn)"]
