@@ -90,7 +90,8 @@ class Discretisation:
         # P1 spaces for output (XDMF wants vertex fields) and nodal measures
         self.Q1 = compat.function_space(msh, compat.element("Lagrange", cell, 1))
         self.P1 = (self.Q1 if not shape else compat.function_space(msh, compat.element("Lagrange", cell, 1, shape)))
-        self._mass = None
+        self._mass = self._M = None
+        self._M_deferred = False
         self._assemble(quadrature_degree)
         self._constraints()
         self._dirichlet()
@@ -142,13 +143,25 @@ class Discretisation:
         ones.set(1.0)
         self.c_lumped = self.C.createVecLeft()
         self.C.mult(ones, self.c_lumped)
-        cinv = self.c_lumped.copy()
-        cinv.reciprocal()
-        Bs = self.B.copy()
-        Bs.diagonalScale(L=cinv)                  # C^-1 B
-        Bt = self.B.transpose(PETSc.Mat())    # not in place; not MatTransposeMatMult (its MPI memory: bench/README)
-        self.M = Bt.matMult(Bs)               # B^T C^-1 B
-        Bt.destroy(), Bs.destroy()
+        self._M_deferred = True                   # M = B^T C^-1 B formed when first asked for (:attr:`M`)
+
+    @property
+    def M(self):
+        """The mass matrix of W^h: M = B^T C^-1 B for a pair with a diagonal C (formed when first asked
+        for: a run whose step operator is matrix-free, :mod:`.matrix_free`, never forms it), the consistent
+        or modified mass of a standard pair, or None (mass ``"consistent"``: never formed)."""
+        if self._M is None and self._M_deferred:
+            self._M, self._M_deferred = masses.singular(self.B, self.c_lumped), False
+        return self._M
+
+    @M.setter
+    def M(self, value):
+        self._M = value
+
+    @property
+    def mass_formed(self):
+        """Whether :attr:`M` is held as a matrix now (False: not formed yet, or never)."""
+        return self._M is not None
 
     def form(self, expr):
         """The compiled form of the UFL ``expr`` at this discretisation's quadrature degree

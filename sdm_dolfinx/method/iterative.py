@@ -26,6 +26,7 @@ from petsc4py import PETSc
 import numpy as np
 
 from sdm_dolfinx import compat
+from sdm_dolfinx.method import masses
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.solvers.active_set import PMAT, PMG_COARSE, PMG_INTERPOLATION, PRODUCT
 
@@ -69,13 +70,13 @@ def rigid_body_modes(W):
     return PETSc.NullSpace().create(vectors=vecs, comm=W.mesh.comm)
 
 
-class _Product:
-    """y = K x with K = c_M M + c_A A (M x by the discretisation's fastest mass product),
-    Dirichlet rows and columns the identity (PETSc python Mat context)."""
+class Product:
+    """y = K x with K = c_M M + c_A A (M x by ``mass_mult``), the rows and columns ``dd`` (the Dirichlet
+    dofs) the identity (PETSc python Mat context; its diagonal from A and B, :func:`~.masses.diagonal`)."""
 
-    def __init__(self, d, mass_mult, c_M, c_A):
-        self.A, self.mass, self.cM, self.cA = d.A, mass_mult, c_M, c_A
-        self.dd = np.asarray(d.ddofs, dtype=np.int32)
+    def __init__(self, d, mass_mult, c_M, c_A, dd=None):
+        self.d, self.A, self.mass, self.cM, self.cA = d, d.A, mass_mult, c_M, c_A
+        self.dd = np.asarray(d.ddofs if dd is None else dd, dtype=np.int32)
         self.w, self.x0 = d.A.createVecLeft(), d.A.createVecRight()
 
     def mult(self, mat, x, y):
@@ -86,6 +87,21 @@ class _Product:
         self.mass(self.x0, self.w)
         y.axpy(self.cM, self.w)
         y.array[self.dd] = x.array_r[self.dd]
+
+    def multTranspose(self, mat, x, y):
+        self.mult(mat, x, y)
+
+    def getDiagonal(self, mat, out):
+        diagonal(self.d, self.cM, self.cA, self.dd).copy(out)
+
+
+def diagonal(d, c_M, c_A, dd):
+    """c_A diag(A) + c_M diag(M) of Discretisation ``d``, 1 at the rows ``dd``."""
+    out = d.A.getDiagonal()
+    out.scale(c_A)
+    out.axpy(c_M, masses.diagonal(d))
+    out.array[np.asarray(dd, dtype=np.int32)] = 1.0
+    return out
 
 
 def refusal(d, linear, block):
@@ -118,15 +134,49 @@ def coarse_refusal(d):
     return None
 
 
-def _coarse(K, d, keep):
+def coarse_operator(d, interpolation, c_M, c_A):
+    """I^T K I for K = c_M B^T D^-1 B + c_A A with the Dirichlet rows and columns the identity, from A and
+    the H x P1 matrix B_0 I (B_0: B with the Dirichlet columns zeroed), never forming K:
+    I^T K I = I^T A_0 I + c_M (B_0 I)^T D^-1 (B_0 I), A_0 = c_A A with the Dirichlet rows and columns the
+    identity."""
+    rows = (d.A.getOwnershipRange()[0] + np.asarray(d.ddofs, dtype=np.int64)).astype(np.int32)
+    A0 = d.A.copy()
+    A0.scale(c_A)
+    A0.zeroRowsColumns(rows, 1.0)
+    coarse = A0.PtAP(interpolation)
+    A0.destroy()
+    free = d.A.createVecRight()
+    free.set(1.0)
+    free.array[np.asarray(d.ddofs, dtype=np.int32)] = 0.0
+    B0 = d.B.copy()
+    B0.diagonalScale(R=free)
+    BI = B0.matMult(interpolation)
+    B0.destroy()
+    scaled = BI.copy()
+    cinv = d.c_lumped.copy()
+    cinv.reciprocal()
+    scaled.diagonalScale(L=cinv)
+    BIt = BI.transpose(PETSc.Mat())
+    mass = BIt.matMult(scaled)
+    for m in (BI, scaled, BIt):
+        m.destroy()
+    coarse.axpy(c_M, mass, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+    mass.destroy()
+    return coarse
+
+
+def _coarse(K, d, coefficients, keep):
     """Compose with K the interpolation I from the vertices' P1 into W^h and the Galerkin coarse operator
     I^T K I with the P1 rigid body modes (``cg-pmg``: :func:`~sdm_dolfinx.solvers.active_set.InactiveSetSolver.
-    _pmg_preconditioner`). The Dirichlet rows and columns of K (the identity) enter I^T K I as they are."""
+    _pmg_preconditioner`): :func:`coarse_operator`, or K's own PtAP when K is not c_M B^T D^-1 B + c_A A."""
     refusal = coarse_refusal(d)
     if refusal:
         raise DiscretisationError(refusal)
     interpolation = compat.interpolation_matrix(d.P1, d.W)
-    coarse = K.PtAP(interpolation)
+    if coefficients is not None and d.B is not None and d.c_lumped is not None:
+        coarse = coarse_operator(d, interpolation, *coefficients)
+    else:
+        coarse = K.PtAP(interpolation)
     ns = rigid_body_modes(d.P1)
     if ns is not None and ns.getVecs()[0].getLocalSize() == coarse.getLocalSize()[0]:
         coarse.setNearNullSpace(ns)
@@ -136,38 +186,37 @@ def _coarse(K, d, keep):
 
 
 def attach(K, d, coefficients, coarse=False):
-    """Compose with the step matrix K (Dirichlet rows eliminated) of Discretisation ``d`` its
-    near-nullspace, a sparse P = c_A A + c_M diag(M) and, when M x is cheaper through B
-    (:func:`~sdm_dolfinx.method.masses.product`), the product of :class:`_Product` (see the
-    module); with ``coarse`` (``cg-pmg``) also the P1 interpolation and the coarse operator of
-    :func:`_coarse`. ``coefficients``: (c_M, c_A) of K = c_M M + c_A A, or None (another step matrix:
-    P = K, no product). Returns the objects to keep alive."""
+    """Compose with the step matrix K (Dirichlet rows eliminated; assembled, or the operator of
+    :mod:`.matrix_free`) of Discretisation ``d`` its near-nullspace, a sparse P = c_A A + c_M diag(M)
+    and, when M x is cheaper through B (:func:`~sdm_dolfinx.method.masses.product`) and K is assembled,
+    the product of :class:`Product` (see the module); with ``coarse`` (``cg-pmg``) also the P1
+    interpolation and the coarse operator of :func:`_coarse`. ``coefficients``: (c_M, c_A) of
+    K = c_M M + c_A A, or None (another step matrix: P = K, no product). Returns the objects to keep
+    alive."""
     ns = rigid_body_modes(d.W)
     if ns is not None and ns.getVecs()[0].getLocalSize() != K.getLocalSize()[0]:
         ns = None
     keep = [ns]
-    if coefficients is None or d.M is None:
+    free = K.getType() == PETSc.Mat.Type.PYTHON         # matrix-free: K is the product
+    if coefficients is None or (not free and d.M is None):
         P = K
     else:
         c_M, c_A = coefficients
         P = d.A.copy()
         P.scale(c_A)
-        dm = d.M.getDiagonal()
-        dm.scale(c_M)
-        P.setDiagonal(dm, addv=True)
         rows = (K.getOwnershipRange()[0] + np.asarray(d.ddofs, dtype=np.int64)).astype(np.int32)
         P.zeroRowsColumns(rows, 1.0)
+        P.setDiagonal(diagonal(d, c_M, c_A, d.ddofs))
         K.compose(PMAT, P)
         keep.append(P)
-        mass_mult = d.mass_product()
-        if mass_mult != d.M.mult:         # M = B^T D^-1 B much denser than B: through B
-            prod = PETSc.Mat().createPython(K.getSizes(), _Product(d, mass_mult, c_M, c_A),
-                                            comm=K.getComm())
+        mass_mult = None if free else d.mass_product()
+        if mass_mult is not None and mass_mult != d.M.mult:         # M = B^T D^-1 B much denser than B
+            prod = PETSc.Mat().createPython(K.getSizes(), Product(d, mass_mult, c_M, c_A), comm=K.getComm())
             prod.setUp()
             K.compose(PRODUCT, prod)
             keep.append(prod)
     if ns is not None:
         P.setNearNullSpace(ns)
     if coarse:
-        _coarse(K, d, keep)
+        _coarse(K, d, coefficients, keep)
     return keep

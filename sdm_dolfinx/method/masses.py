@@ -72,6 +72,33 @@ ZERO_TOL = 1e-12
 MAX_RINGS = 4
 
 
+def singular(B, c):
+    """M = B^T C^-1 B for C = diag(``c``) (the product of B^T and C^-1 B)."""
+    cinv = c.copy()
+    cinv.reciprocal()
+    Bs = B.copy()
+    Bs.diagonalScale(L=cinv)                  # C^-1 B
+    Bt = B.transpose(PETSc.Mat())    # not in place; not MatTransposeMatMult (its MPI memory: bench/README)
+    M = Bt.matMult(Bs)
+    Bt.destroy(), Bs.destroy()
+    return M
+
+
+def diagonal(disc):
+    """The diagonal of M (a vector of W^h's layout) without forming M when it is B^T C^-1 B with
+    C = diag(c): diag(M)_j = sum_i B_ij^2 / c_i; else M's own."""
+    if disc.B is None or disc.c_lumped is None:
+        return disc.M.getDiagonal()
+    ai, aj, av = disc.B.getValuesCSR()
+    squares = PETSc.Mat().createAIJ(disc.B.getSizes(), csr=(ai, aj, av * av), comm=disc.comm)
+    cinv = disc.c_lumped.copy()
+    cinv.reciprocal()
+    out = disc.A.createVecLeft()
+    squares.multTranspose(cinv, out)
+    squares.destroy()
+    return out
+
+
 def build(disc):
     """The modified mass of ``disc.mass`` (:data:`MODIFIED`) from the consistent ``disc.M``."""
     if disc.mass == "row-sum":
@@ -95,6 +122,11 @@ def product(disc):
                              op=MPI.SUM)
     if nz[0] <= 3 * nz[1]:
         return disc.M.mult
+    return through_b(disc)
+
+
+def through_b(disc):
+    """``mult(x, y)``: y = B^T (D^-1 (B x)) = M x for a pair with a diagonal C = D, M never formed."""
     h = disc.B.createVecLeft()
 
     def mult(x, y):

@@ -26,12 +26,13 @@ from mpi4py import MPI
 
 import numpy as np
 
-from sdm_dolfinx.method import iterative as _iterative, moving_bound as _mb, step_matrix as _step_matrix
+from sdm_dolfinx.method import iterative as _iterative, matrix_free as _matrix_free, moving_bound as _mb
+from sdm_dolfinx.method import step_matrix as _step_matrix
 from sdm_dolfinx.method import obstacle_rows as _obstacles
 from sdm_dolfinx.method.gap_solver import gap_solver
 from sdm_dolfinx.contact import friction as _friction, friction_bound as _friction_bound
 from sdm_dolfinx.contact.context import StepContext
-from sdm_dolfinx.run import prescribed as _prescribed
+from sdm_dolfinx.run import prescribed as _prescribed, solver_rules
 from sdm_dolfinx import schemes
 from sdm_dolfinx.errors import StepError
 from sdm_dolfinx.method.errors import DiscretisationError
@@ -87,13 +88,14 @@ class Integrator:
         self.parts = _prescribed.Prescribed() if discretisation.problem.dirichlet_parts else None
         refused = _friction.check_solver(self.friction and self.friction.law, vi_solver, linear)
         parts_refused = self.parts.refuse(self) if self.parts else None
-        refused = refused or [r for r in (_obstacles.refusal(self, ts, vi_solver, linear), self._refuse_contact(),
+        refused = refused or [r for r in (_obstacles.refusal(self, ts, vi_solver, linear), solver_rules.contact_refusal(self),
                                           parts_refused, _iterative.refusal(discretisation, linear, self.block),
                                           _mb.refusal(discretisation, ts, contact), ts.refuse(self)) if r]
         if refused:
             raise DiscretisationError(refused[0])
         ts.setup(self)
-        self._build()
+        linear = self._resolve(linear)
+        self._build(linear)
         self._make_solver(vi_solver, linear, options, contact_options)
         self.moving = _mb.MovingBound(discretisation, ts, self.dt, self.solver)     # a moving obstacle's bounds
         ts.prepare(self)
@@ -104,32 +106,21 @@ class Integrator:
         checkpoint of U and V cannot restart it."""
         return bool(self.time_scheme.stateful)
 
-    def _refuse_contact(self):
-        """The refusal of a contact treatment with friction or the block variant, or of friction or a
-        treatment on a problem without constrained vertices (they would do nothing), or None."""
+    def _resolve(self, linear):
+        """The linear strategy ``linear`` means (``auto``: :func:`~sdm_dolfinx.solvers.choose_strategy`)."""
         d = self.discretisation
-        if d.num_constraints == 0 and (self.friction is not None or self.contact != "exact"):
-            what = f"friction {self.friction.law}" if self.friction is not None else f"contact {self.contact}"
-            return (f"{what} acts at the constrained vertices, and problem {d.problem.name!r} has none (contact "
-                    f"switched off?): remove it")
-        if self.contact == "exact":
-            return None
-        if self.friction is not None:
-            return f"friction needs contact 'exact' (the frictional step is a VI), not {self.contact!r}"
-        if self.block:
-            return (f"contact {self.contact!r} is written in the M formulation; mass 'consistent' solves the "
-                    f"(U, V) block system: use mass 'lumped'")
-        return None
+        #: the linear strategy used, and why
+        self.linear_strategy, self.linear_reason = linear, "asked for"
+        if linear == "auto":
+            n = d.A.getSize()[0] + (d.C.getSize()[0] if self.block else 0)
+            linear, why = choose_strategy(d.num_constraints, not self.block, n, d.problem.mesh.topology.dim, d.comm,
+                                          explain=True)
+            linear, why = _iterative.prefer_pmg(d, linear, why, self.block)     # P2: cg-gamg -> cg-pmg
+            self.linear_strategy, self.linear_reason = linear, f"auto: {why}"
+        return linear
 
     def _make_solver(self, vi_solver, linear, options, contact_options):
         d = self.discretisation
-        #: the linear strategy used, and why (``auto``: :func:`~sdm_dolfinx.solvers.choose_strategy`)
-        self.linear_strategy, self.linear_reason = linear, "asked for"
-        if linear == "auto":
-            linear, why = choose_strategy(d.num_constraints, not self.block, self.K.getSize()[0],
-                                          d.problem.mesh.topology.dim, d.comm, explain=True)
-            linear, why = _iterative.prefer_pmg(d, linear, why, self.block)     # P2: cg-gamg -> cg-pmg
-            self.linear_strategy, self.linear_reason = linear, f"auto: {why}"
         if linear in ("cg-gamg", "cg-pmg") and not self.block:     # GAMG's near-nullspace, P ~ K, a cheap K x
             self._gamg = _iterative.attach(self.K, d, self.coefficients, coarse=linear == "cg-pmg")
         # K = c_M B^T D^-1 B + A factorised through the sparser [A, sqrt(c_M) B^T; sqrt(c_M) B, -D] (P2/P1)
@@ -165,25 +156,31 @@ class Integrator:
             if self.friction.law == "coulomb":          # up front: a mu the measured bound does not cover
                 _friction_bound.warn_if_above(self, self.friction.mu)
 
-    def _build(self):
+    def _build(self, linear):
         d, ts = self.discretisation, self.time_scheme
         K = ts.step_matrix(self)
         #: (c_M, c_A) of K = c_M M + c_A A, or None (the block variant, a scheme's own matrix)
         self.coefficients = None
+        #: K is the operator of :mod:`~sdm_dolfinx.method.matrix_free` (never assembled, M never formed)
+        self.matrix_free = False
         if K is None and not self.block:
             self.coefficients = ts.coefficients(self.dt)
-            K = _step_matrix.combination(d, *self.coefficients)
+            self.matrix_free = _matrix_free.refusal(self, linear) is None
+            K = (_matrix_free.operator(d, *self.coefficients, dirichlet=False) if self.matrix_free
+                 else _step_matrix.combination(d, *self.coefficients))
         elif K is None:
             K = _step_matrix.block_matrix(d, self.alpha)
         self.K_full = K
         # Dirichlet dofs (constant values g): identity rows and columns, lifting z = K g
-        self.K, self.gsys, self.lift = _step_matrix.eliminate(K, d)
+        self.K, self.gsys, self.lift = (_matrix_free.eliminate(K, d, *self.coefficients) if self.matrix_free
+                                        else _step_matrix.eliminate(K, d))
         self.b = self.K.createVecLeft()
         self.X = self.K.createVecRight()
         self._tmpW = d.A.createVecLeft()
         self._tmpW2 = d.A.createVecLeft()
         self._rigid = {}
-        self._mass = None if self.block else d.mass_product()     # the block variant never forms M
+        self._mass = (None if self.block else     # the block variant never forms M, nor does a matrix-free K
+                      self.K.getPythonContext().mass if self.matrix_free else d.mass_product())
         # a time-dependent load: the step's L, and L at the time of a recorded state (energies)
         self._L_step = d.L.copy() if self.time_dependent else None
         self._L_state, self._L_state_t = (d.L.copy(), 0.0) if self.time_dependent else (None, None)

@@ -173,6 +173,7 @@ class _Loop:
                      "solver_options_prefix": getattr(integ.solver, "prefix", None),
                      "linear_strategy": getattr(integ, "linear_strategy", None),
                      "linear_strategy_reason": getattr(integ, "linear_reason", None),
+                     "step_matrix": "matrix-free" if getattr(integ, "matrix_free", False) else "assembled",
                      "factor_package": _factor_package(integ),
                      "status": "running", **extra_info}
         self.out, self.restarted, self.first = out, bool(restart), 0

@@ -29,3 +29,21 @@ def snes_linear(o: Mapping[str, Any], label: Mapping[str, str]) -> list[str]:
         return []
     return [f"{label['vi_solver']} {o['vi_solver']!r} takes {label['linear']} 'auto' or 'lu' only: it factorises its "
             f"own Newton systems (MUMPS), and {o['linear']} is a strategy of the semi-smooth Newton (vi_solver ssn)"]
+
+
+def contact_refusal(integ):
+    """The refusal of a contact treatment with friction or the block variant, or of friction or a
+    treatment on a problem without constrained vertices (they would do nothing), or None."""
+    d = integ.discretisation
+    if d.num_constraints == 0 and (integ.friction is not None or integ.contact != "exact"):
+        what = f"friction {integ.friction.law}" if integ.friction is not None else f"contact {integ.contact}"
+        return (f"{what} acts at the constrained vertices, and problem {d.problem.name!r} has none (contact "
+                f"switched off?): remove it")
+    if integ.contact == "exact":
+        return None
+    if integ.friction is not None:
+        return f"friction needs contact 'exact' (the frictional step is a VI), not {integ.contact!r}"
+    if integ.block:
+        return (f"contact {integ.contact!r} is written in the M formulation; mass 'consistent' solves the "
+                f"(U, V) block system: use mass 'lumped'")
+    return None
