@@ -212,7 +212,8 @@ def set_petsc_options(pairs):
 #: and SNES's iteration limit (-sdm_snes_max_it -5 made the semi-smooth Newton do no iteration)
 CHECKED_OPTIONS = {**VI_OPTIONS, "snes_max_it": (int, lambda v: v >= 1, "an integer >= 1"),
                    "schur_max_active": (int, lambda v: v >= 1, "an integer >= 1"),
-                   "gap_max_columns": (int, lambda v: v >= 0, "an integer >= 0")}
+                   "gap_max_columns": (int, lambda v: v >= 0, "an integer >= 0"),
+                   "inexact_rtol": (float, lambda v: 0 <= v < 1, "a number in [0, 1)")}
 
 
 #: the parser whose options an unrecognised argument is compared with (set by :func:`parse`)

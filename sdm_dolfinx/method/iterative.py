@@ -75,7 +75,10 @@ class Product:
     dofs) the identity (PETSc python Mat context; its diagonal from A and B, :func:`~.masses.diagonal`)."""
 
     def __init__(self, d, mass_mult, c_M, c_A, dd=None):
-        self.d, self.A, self.mass, self.cM, self.cA = d, d.A, mass_mult, c_M, c_A
+        # A x in PETSc's block format for a vector W^h: 3.5 times faster than dolfinx's AIJ (the ball, level 4,
+        # 107k dofs, bs 3: 3.7 ms against 12.7 ms); B's block copy is not faster (3.0 ms against 2.2 ms)
+        blocked = d.A.getBlockSize() > 1
+        self.d, self.A, self.mass, self.cM, self.cA = d, d.A.convert("baij", PETSc.Mat()) if blocked else d.A, mass_mult, c_M, c_A
         self.dd = np.asarray(d.ddofs if dd is None else dd, dtype=np.int32)
         self.w, self.x0 = d.A.createVecLeft(), d.A.createVecRight()
 

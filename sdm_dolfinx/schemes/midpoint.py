@@ -41,6 +41,7 @@ U^{n+1}_i - g_i(t_{n+1}) alternates in sign with the amplitude 2 |g(t_{n+1/2}) -
 arrives on a moving obstacle (an impact) loses energy as on a fixed one.
 """
 from sdm_dolfinx.schemes.base import Scheme
+from sdm_dolfinx.solvers.active_set import MULTIGRID_STRATEGIES
 
 
 class Midpoint(Scheme):
@@ -63,6 +64,14 @@ class Midpoint(Scheme):
 
     def velocity_block(self, y, Vn):
         return 2.0 * y - Vn
+
+    def guess(self, integ, U, V, X):
+        """U^n; with a multigrid strategy (whose Krylov iterations start from the guess) the predictor
+        U^n + Vbar^n / alpha, which is X when Vbar^{n+1} = Vbar^n: in flight its error is O(dt^2) where
+        U^n's is O(dt). The ball (level 3, 6 steps, cg-pmg): 22 % less time (bench/README.md)."""
+        super().guess(integ, U, V, X)
+        if integ.linear_strategy in MULTIGRID_STRATEGIES and not integ.block:
+            X.array[:integ.nW] += V.array_r / integ.alpha
 
 
 SCHEME = Midpoint()

@@ -136,12 +136,12 @@ def snes_reason_name(reason):
 
 
 #: the families of PETSc options the step solvers read under their prefix (``-sdm_`` or an
-#: instance's ``-sdm_<k>_``): their own ``vi_*``, ``schur_max_active`` and ``gap_max_columns``, the semi-smooth Newton's
+#: instance's ``-sdm_<k>_``): their own ``vi_*``, ``schur_max_active``, ``gap_max_columns`` and ``inexact_rtol``, the semi-smooth Newton's
 #: or PETSc's SNES (``snes_``), its linear solves (``ksp_``, ``pc_``, ``mat_``), the factorisation
 #: (``factor_``), the penalty's and the AMG strategies' Krylov solvers (``penalty_``, ``amg_``,
 #: ``gamg_``, ``pmg_``)
 OPTION_FAMILIES = ("vi_", "snes_", "ksp_", "pc_", "mat_", "factor_", "penalty_", "amg_", "gamg_", "pmg_")
-_OPTION = re.compile(r"^(\d+_)?(" + "|".join(OPTION_FAMILIES) + r")\w+$|^(\d+_)?(schur_max_active|gap_max_columns)$")
+_OPTION = re.compile(r"^(\d+_)?(" + "|".join(OPTION_FAMILIES) + r")\w+$|^(\d+_)?(schur_max_active|gap_max_columns|inexact_rtol)$")
 
 
 def unknown_option(name):
@@ -153,5 +153,5 @@ def unknown_option(name):
     if _OPTION.match(key):
         return None
     return (f"PETSc option -sdm_{key}: no step solver reads it; the step solvers' options are -sdm_"
-            f"{', -sdm_'.join(f + '...' for f in OPTION_FAMILIES)}, -sdm_schur_max_active and -sdm_gap_max_columns "
-            f"(docs/running.md)")
+            f"{', -sdm_'.join(f + '...' for f in OPTION_FAMILIES)}, -sdm_schur_max_active, -sdm_gap_max_columns "
+            f"and -sdm_inexact_rtol (docs/running.md)")
