@@ -69,8 +69,8 @@ SUITES = {
     # 6 steps from 4 um above the plane, contact from step 2 (up to 25 / 41 / 90 active vertices
     # at levels 3 / 4 / 5)
     "ball-window": {"problem": "ball", "pair": "P2/P1", "dt": 4e-5, "T": 2.4e-4, "height": 0.004,
-                    "sizes": [3, 4, 5],
-                    "max_size": {"lu": 1, "rsls": 1, "amg": 2, "cg-amg": 2, "cg-factor": 2, "schur": 4, "auto": 4}},
+                    "sizes": [3, 4, 5, 6],
+                    "max_size": {"lu": 1, "rsls": 1, "amg": 2, "cg-amg": 2, "cg-factor": 2, "schur": 4, "auto": 4, "cg-gamg": 5}},
 }
 
 QUICK = {

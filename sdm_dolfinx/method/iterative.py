@@ -21,6 +21,8 @@ smoothing and the Krylov method see K itself, so the solution is K's.
 :func:`attach` composes them with K (``K.compose``): the solvers find them with ``K.query``
 (:mod:`sdm_dolfinx.solvers.active_set`), so no solver signature changes.
 """
+import weakref
+
 from petsc4py import PETSc
 
 import numpy as np
@@ -75,10 +77,7 @@ class Product:
     dofs) the identity (PETSc python Mat context; its diagonal from A and B, :func:`~.masses.diagonal`)."""
 
     def __init__(self, d, mass_mult, c_M, c_A, dd=None):
-        # A x in PETSc's block format for a vector W^h: 3.5 times faster than dolfinx's AIJ (the ball, level 4,
-        # 107k dofs, bs 3: 3.7 ms against 12.7 ms); B's block copy is not faster (3.0 ms against 2.2 ms)
-        blocked = d.A.getBlockSize() > 1
-        self.d, self.A, self.mass, self.cM, self.cA = d, d.A.convert("baij", PETSc.Mat()) if blocked else d.A, mass_mult, c_M, c_A
+        self.d, self.A, self.mass, self.cM, self.cA = d, blocked(d), mass_mult, c_M, c_A
         self.dd = np.asarray(d.ddofs if dd is None else dd, dtype=np.int32)
         self.w, self.x0 = d.A.createVecLeft(), d.A.createVecRight()
 
@@ -96,6 +95,21 @@ class Product:
 
     def getDiagonal(self, mat, out):
         diagonal(self.d, self.cM, self.cA, self.dd).copy(out)
+
+
+#: Discretisation -> its A in PETSc's block format (:func:`blocked`), made once
+_BLOCKED: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def blocked(d):
+    """A of Discretisation ``d`` for products: for a vector W^h a copy in PETSc's block format (BAIJ), 3.5 times
+    faster than dolfinx's AIJ (the ball, level 4, 107k dofs, bs 3: 3.7 ms against 12.7 ms; B's block copy is not
+    faster: 3.0 ms against 2.2 ms), made once per discretisation; else A itself."""
+    if d.A.getBlockSize() == 1:
+        return d.A
+    if d not in _BLOCKED:
+        _BLOCKED[d] = compat.assemble_matrix_baij(d.form(d._a_ufl))     # A assembled again, blocked
+    return _BLOCKED[d]
 
 
 def diagonal(d, c_M, c_A, dd):
