@@ -23,6 +23,7 @@ smoothing and the Krylov method see K itself, so the solution is K's.
 """
 import weakref
 
+from mpi4py import MPI
 from petsc4py import PETSc
 
 import numpy as np
@@ -73,22 +74,35 @@ def rigid_body_modes(W):
 
 
 class Product:
-    """y = K x with K = c_M M + c_A A (M x by ``mass_mult``), the rows and columns ``dd`` (the Dirichlet
-    dofs) the identity (PETSc python Mat context; its diagonal from A and B, :func:`~.masses.diagonal`)."""
+    """y = K x with K = c_M B^T D^-1 B + c_A A, the rows and columns ``dd`` (the Dirichlet dofs) the identity
+    (PETSc python Mat context; its diagonal from A and B, :func:`~.masses.diagonal`). Four passes over the
+    data when there are no Dirichlet dofs: A x (:func:`blocked`), B x, its scaling by c_M / D and
+    y += B^T (...) in one product."""
 
-    def __init__(self, d, mass_mult, c_M, c_A, dd=None):
-        self.d, self.A, self.mass, self.cM, self.cA = d, blocked(d), mass_mult, c_M, c_A
+    def __init__(self, d, c_M, c_A, dd=None):
+        self.d, self.A, self.B, self.cM, self.cA = d, blocked(d), d.B, c_M, c_A
         self.dd = np.asarray(d.ddofs if dd is None else dd, dtype=np.int32)
-        self.w, self.x0 = d.A.createVecLeft(), d.A.createVecRight()
+        self.any_dd = d.comm.allreduce(len(self.dd), op=MPI.SUM) > 0      # the same branch on every rank
+        self.x0, self.h = d.A.createVecRight(), d.B.createVecLeft()
+        self.scale = d.c_lumped.copy()              # c_M / D
+        self.scale.reciprocal()
+        self.scale.scale(c_M)
+        self.mass = masses.through_b(d)             # M x alone (energies, momenta)
 
     def mult(self, mat, x, y):
-        x.copy(self.x0)
-        self.x0.array[self.dd] = 0.0
-        self.A.mult(self.x0, y)
-        y.scale(self.cA)
-        self.mass(self.x0, self.w)
-        y.axpy(self.cM, self.w)
-        y.array[self.dd] = x.array_r[self.dd]
+        x0 = x
+        if self.any_dd:
+            x.copy(self.x0)
+            self.x0.array[self.dd] = 0.0
+            x0 = self.x0
+        self.A.mult(x0, y)
+        if self.cA != 1.0:
+            y.scale(self.cA)
+        self.B.mult(x0, self.h)
+        self.h.pointwiseMult(self.h, self.scale)
+        self.B.multTransposeAdd(self.h, y, y)
+        if self.any_dd:
+            y.array[self.dd] = x.array_r[self.dd]
 
     def multTranspose(self, mat, x, y):
         self.mult(mat, x, y)
@@ -226,9 +240,8 @@ def attach(K, d, coefficients, coarse=False):
         P.setDiagonal(diagonal(d, c_M, c_A, d.ddofs))
         K.compose(PMAT, P)
         keep.append(P)
-        mass_mult = None if free else d.mass_product()
-        if mass_mult is not None and mass_mult != d.M.mult:         # M = B^T D^-1 B much denser than B
-            prod = PETSc.Mat().createPython(K.getSizes(), Product(d, mass_mult, c_M, c_A), comm=K.getComm())
+        if not free and d.mass_product() != d.M.mult:         # M = B^T D^-1 B much denser than B
+            prod = PETSc.Mat().createPython(K.getSizes(), Product(d, c_M, c_A), comm=K.getComm())
             prod.setUp()
             K.compose(PRODUCT, prod)
             keep.append(prod)

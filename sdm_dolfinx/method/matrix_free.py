@@ -21,7 +21,6 @@ from petsc4py import PETSc
 
 import numpy as np
 
-from sdm_dolfinx.method import masses
 from sdm_dolfinx.method.iterative import Product
 from sdm_dolfinx.solvers.active_set import MULTIGRID_STRATEGIES
 
@@ -46,7 +45,7 @@ def operator(d, c_M, c_A, dirichlet=True):
     """K = c_M M + c_A A of Discretisation ``d`` as a PETSc python Mat (M through B, never formed), with
     the Dirichlet rows and columns the identity (``dirichlet``) or not."""
     dd = d.ddofs if dirichlet else np.zeros(0, dtype=np.int32)
-    K = PETSc.Mat().createPython(d.A.getSizes(), Product(d, masses.through_b(d), c_M, c_A, dd), comm=d.comm)
+    K = PETSc.Mat().createPython(d.A.getSizes(), Product(d, c_M, c_A, dd), comm=d.comm)
     K.setUp()
     return K
 

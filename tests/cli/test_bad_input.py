@@ -62,6 +62,8 @@ BAD = [
     (["membrane", "-sdm_schur_max_active", "0"], None, "-sdm_schur_max_active"),
     (["ball", "-sdm_schur_max_active", "-3"], None, "-sdm_schur_max_active"),
     (["membrane", "-sdm_gap_max_columns", "-1"], None, "-sdm_gap_max_columns"),
+    (["ball", "-sdm_inexact_rtol", "1"], None, "-sdm_inexact_rtol"),
+    (["ball", "-sdm_inexact_rtol", "-1e-6"], None, "-sdm_inexact_rtol"),
     (["disc", "--radius", "0"], None, "--radius"),
     (["disc", "--rho", "nan"], None, "--rho"),
     (["disc", "--level", "7"], None, "invalid choice"),

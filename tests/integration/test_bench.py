@@ -74,6 +74,27 @@ def test_projection_recovers_a_power_law():
         assert abs(r["gb_per_rank"] - (need / r["ranks"] + memory.BYTES_PER_PROCESS) / 1e9) < 1e-9
 
 
+def test_weak_scaling_model_adds_its_measured_parts():
+    """bench/weak_scaling.py: on 1 rank a contact step is k w n (the local work alone); on P ranks the halo
+    term is k S (alpha + h / beta) with h scaled as the surface (n_local / n_counted)^(2/3), the reductions'
+    k R 2 alpha log2 P, and GAMG's levels add latency; the model's parts sum to its total."""
+    spec = importlib.util.spec_from_file_location("bench_weak", SCRIPT.parent / "weak_scaling.py")
+    weak = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(weak)
+    counts = [{"ranks": 2, "n_local_max": 1000, "bytes_per_exchange": 8000.0, "exchanges_per_it": 20.0,
+               "reductions_per_it": 3.0, "gamg_levels": 3}]
+    w, k, n = 1e-6, 30.0, 8000
+    t1, parts1 = weak.model(w, counts, n, 1, k)
+    assert abs(t1 - k * w * n) < 1e-15 and parts1["halo"] == 0.0 and parts1["reductions"] == 0.0
+    t, parts = weak.model(w, counts, n, 64, k)
+    halo = 8000.0 * (n / 1000) ** (2.0 / 3.0)
+    assert abs(parts["halo"] - k * 20.0 * (weak.ALPHA + halo / weak.BETA)) < 1e-15
+    assert abs(parts["reductions"] - k * 3.0 * 2 * weak.ALPHA * 6) < 1e-15
+    levels = 3 + np.log(64) / np.log(8)
+    assert abs(t - (parts["local"] + parts["halo"] + parts["reductions"] + k * levels * weak.LEVEL_EXCHANGES
+                    * weak.ALPHA)) < 1e-12
+
+
 def test_memory_share_model_covers_the_recorded_two_rank_runs():
     """solvers.memory.per_rank is conservative against every recorded 3-D pair of runs (same suite,
     level, strategy on 1 and 2 ranks, above the redundant-factorisation size): the largest rank's
