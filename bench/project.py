@@ -1,7 +1,7 @@
 """The 3-D ball's measured curves, fitted and projected to a cluster run (README "Large runs").
 
 Reads ``results/ball.json`` (75-step bounces, ``auto`` = ``schur`` at levels 1-4) and
-``results/ball-window.json`` (6 steps from first contact, ``schur`` and ``cg-gamg``) and fits,
+``results/ball-window.json`` (6 steps from first contact, ``schur``, ``cg-gamg`` and ``cg-pmg``) and fits,
 for each strategy on 1 rank, time per contact step = a n^s (least squares in log-log over the
 levels measured); memory per rank comes from :mod:`sdm_dolfinx.solvers.memory`'s fits of the same
 runs' peaks. At ``--dofs`` (default 10 M) it prints, for each strategy and rank count, the
@@ -45,11 +45,11 @@ def records(out):
 
 def curves(recs):
     """strategy -> {ranks: [(dofs, s per contact step)]},
-    ``schur`` from the bounces (``auto`` chose it) and ``cg-gamg`` from the window."""
+    ``schur`` from the bounces (``auto`` chose it), ``cg-gamg`` and ``cg-pmg`` from the window."""
     cur = {}
     for suite, r in recs:
         strat = r.get("linear_strategy") or ("schur" if r["strategy"] == "auto" else r["strategy"])
-        if (strat, suite) not in (("schur", "ball"), ("cg-gamg", "ball-window")):
+        if (strat, suite) not in (("schur", "ball"), ("cg-gamg", "ball-window"), ("cg-pmg", "ball-window")):
             continue
         cur.setdefault(strat, {}).setdefault(r["ranks"], []).append((r["dofs"], r["step_time_impact"]))
     return {s: {p: sorted(v) for p, v in by.items()} for s, by in cur.items()}
