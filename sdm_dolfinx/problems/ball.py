@@ -227,8 +227,8 @@ def total_mass(problem):
 
 
 PARAMS = (
-    Param("level", 1, "mesh level: far size R / (2, 3, 4, 5, 6), contact size a / (2, 4, 6, 8, 12), a the Hertz "
-          "contact radius (P2 dofs at the defaults: 6594, 21750, 53976, 107397, 291501)", type=int,
+    Param("level", 1, "mesh level: far size R / (2, 3, 4, 5, 6, 9), contact size a / (2, 4, 6, 8, 12, 18), a the "
+          "Hertz contact radius (P2 dofs at the defaults: 6594, 21750, 53976, 107397, 291501, 890127)", type=int,
           choices=tuple(sorted(ball_mesh.LEVELS))),
     Param("h", None, "gmsh mesh size far from the contact (overrides the level's)", unit="mm", type=float,
           low=0.0, low_strict=True),

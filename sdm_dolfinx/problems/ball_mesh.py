@@ -27,7 +27,7 @@ LOWER, UPPER = 1, 2
 #: relative to the Hertz contact radius a (P2 dof counts at the defaults: :data:`LEVEL_DOFS`)
 LEVELS = {1: (2.0, 2.0), 2: (3.0, 4.0), 3: (4.0, 6.0), 4: (5.0, 8.0), 5: (6.0, 12.0), 6: (9.0, 18.0)}
 #: the P2 vector dof counts of the levels at the default ball (R = 20 mm, a = 1.63 mm), gmsh 4.8
-LEVEL_DOFS = {1: 6594, 2: 21750, 3: 53976, 4: 107397, 5: 291501}
+LEVEL_DOFS = {1: 6594, 2: 21750, 3: 53976, 4: 107397, 5: 291501, 6: 890127}
 #: cells of size h_contact within REFINE_RADIUS x a of A: the Hertz contact zone and a margin for
 #: a numerical contact radius larger than a (the zone's edge is where the pressure's sqrt is steep)
 REFINE_RADIUS = 1.5

@@ -14,9 +14,10 @@ Nested dissection of a 3-D mesh leaves nnz(L) ~ n^(4/3) (2-D: n log n); a least-
 RSS - BYTES_PER_PROCESS = a n + c n^(4/3) over levels 2-4 gives a = 23 100 and c = 592 bytes
 (levels 2-4 within 2 %, level 1 estimated at 0.76 of its RSS: the process's own libraries).
 A factorised run also caches up to SCHUR_MAX_COLUMNS columns K^-1 e_i, 8 n bytes each, while they
-take less than SCHUR_COLUMN_MEMORY (the 125-step level-4 run: +0.75 GB). The iterative fit (K, M,
-P, the GAMG hierarchy, no factor) is b n with b = 32 000 bytes (level 4; levels 1-3: 27 000,
-29 000, 31 000). Level 5 (291 501 dofs) is estimated at 18.2 GB + 2 GB
+take less than SCHUR_COLUMN_MEMORY (the 125-step level-4 run: +0.75 GB). The iterative fit (A and its
+block copy, B, P, the multigrid, no factor, K never assembled: :mod:`sdm_dolfinx.method.matrix_free`) is
+b n with b = 6 600 bytes (``cg-pmg``, levels 3-6: 6 635, 6 460, 6 408, 6 390; level 1: 213 MB measured
+against 194 MB; before the step operator was matrix-free, 32 000). Level 5 (291 501 dofs) is estimated at 18.2 GB + 2 GB
 of columns with ``schur``. In 2-D the factorisation always fitted at the sizes run (disc level 6,
 512k dofs: 4.9 GB) and ``auto`` does not look at memory.
 """
@@ -28,8 +29,8 @@ from sdm_dolfinx.solvers.schur import SCHUR_COLUMN_MEMORY, SCHUR_MAX_COLUMNS
 BYTES_PER_PROCESS = 150e6
 #: factorised strategies in 3-D: bytes = FACTOR_3D[0] n + FACTOR_3D[1] n^(4/3), n = dim W^h
 FACTOR_3D = (23100.0, 592.0)
-#: ``cg-gamg`` in 3-D: bytes = ITERATIVE_3D n
-ITERATIVE_3D = 32000.0
+#: ``cg-pmg`` and ``cg-gamg`` in 3-D (matrix-free): bytes = ITERATIVE_3D n
+ITERATIVE_3D = 6600.0
 #: ``auto`` factorises only when the estimate is below this fraction of the memory available per rank
 MEMORY_MARGIN = 0.8
 #: the share of a run's memory that does not divide among the ranks: on 2 ranks the largest held
