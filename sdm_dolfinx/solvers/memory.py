@@ -58,19 +58,26 @@ def per_rank(total, ranks):
     return total * (SHARED + (1.0 - SHARED) / ranks)
 
 
+def mem_available():
+    """MemAvailable of /proc/meminfo (bytes), or None where there is none (not collective)."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024.0
+    except (OSError, ValueError, IndexError):
+        return None
+    return None
+
+
 def available_per_rank(comm=MPI.COMM_WORLD):
     """MemAvailable of /proc/meminfo divided by the ranks of ``comm`` on this node (bytes; the
     smallest over the nodes), or None where there is no /proc/meminfo."""
     node = comm.Split_type(MPI.COMM_TYPE_SHARED)
     avail = None
     if node.rank == 0:
-        try:
-            with open("/proc/meminfo") as fh:
-                for line in fh:
-                    if line.startswith("MemAvailable:"):
-                        avail = float(line.split()[1]) * 1024.0 / node.size
-        except (OSError, ValueError, IndexError):
-            avail = None
+        total = mem_available()
+        avail = None if total is None else total / node.size
     avail = node.bcast(avail, root=0)
     node.Free()
     vals = [a for a in comm.allgather(avail) if a is not None]
