@@ -34,16 +34,7 @@ BYTES_PER_PROCESS = 150e6
 def available_memory(comm=MPI.COMM_WORLD):
     """The machine's available memory in bytes (``MemAvailable`` of /proc/meminfo, read on
     rank 0), or None where there is no /proc/meminfo."""
-    def read():
-        try:
-            with open("/proc/meminfo") as fh:
-                for line in fh:
-                    if line.startswith("MemAvailable:"):
-                        return float(line.split()[1]) * 1024.0
-        except (OSError, ValueError, IndexError):
-            return None
-        return None
-    return comm.bcast(read() if comm.rank == 0 else None, root=0)
+    return comm.bcast(mem_available() if comm.rank == 0 else None, root=0)
 
 
 def _lagrange_dofs(family, degree, counts):
