@@ -29,7 +29,7 @@ from petsc4py import PETSc
 import numpy as np
 
 from sdm_dolfinx import compat
-from sdm_dolfinx.method import masses
+from sdm_dolfinx.method import masses, step_matrix
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.solvers.active_set import PMAT, PMG_COARSE, PMG_INTERPOLATION, PRODUCT
 
@@ -88,6 +88,7 @@ class Product:
         self.scale.reciprocal()
         self.scale.scale(c_M)
         self.mass = masses.through_b(d)             # M x alone (energies, momenta)
+        self._diagonal = None
 
     def mult(self, mat, x, y):
         x0 = x
@@ -108,7 +109,9 @@ class Product:
         self.mult(mat, x, y)
 
     def getDiagonal(self, mat, out):
-        diagonal(self.d, self.cM, self.cA, self.dd).copy(out)
+        if self._diagonal is None:          # asked for by the preconditioner's P and the Alart-Curnier parameter
+            self._diagonal = diagonal(self.d, self.cM, self.cA, self.dd)
+        self._diagonal.copy(out)
 
 
 #: Discretisation -> its A in PETSc's block format (:func:`blocked`), made once
@@ -170,11 +173,9 @@ def coarse_operator(d, interpolation, c_M, c_A):
     the H x P1 matrix B_0 I (B_0: B with the Dirichlet columns zeroed), never forming K:
     I^T K I = I^T A_0 I + c_M (B_0 I)^T D^-1 (B_0 I), A_0 = c_A A with the Dirichlet rows and columns the
     identity."""
-    rows = (d.A.getOwnershipRange()[0] + np.asarray(d.ddofs, dtype=np.int64)).astype(np.int32)
     A0 = d.A.copy()
     A0.scale(c_A)
-    A0.zeroRowsColumns(rows, 1.0)
-    coarse = A0.PtAP(interpolation)
+    coarse = step_matrix.identity_rows(A0, d.ddofs).PtAP(interpolation)
     A0.destroy()
     free = d.A.createVecRight()
     free.set(1.0)
@@ -235,9 +236,8 @@ def attach(K, d, coefficients, coarse=False):
         c_M, c_A = coefficients
         P = d.A.copy()
         P.scale(c_A)
-        rows = (K.getOwnershipRange()[0] + np.asarray(d.ddofs, dtype=np.int64)).astype(np.int32)
-        P.zeroRowsColumns(rows, 1.0)
-        P.setDiagonal(diagonal(d, c_M, c_A, d.ddofs))
+        step_matrix.identity_rows(P, d.ddofs)
+        P.setDiagonal(K.getDiagonal())              # K's (the operator's: from A and B, not M)
         K.compose(PMAT, P)
         keep.append(P)
         if not free and d.mass_product() != d.M.mult:         # M = B^T D^-1 B much denser than B

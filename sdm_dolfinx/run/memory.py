@@ -10,7 +10,7 @@ from mpi4py import MPI
 
 from sdm_dolfinx.method.pairs import Pair, get_pair
 from sdm_dolfinx.run.options import RunInputError
-from sdm_dolfinx.solvers.memory import MEMORY_MARGIN, mem_available, per_rank, run_bytes
+from sdm_dolfinx.solvers.memory import factorisation_fits, mem_available, per_rank, run_bytes
 
 if TYPE_CHECKING:
     from sdm_dolfinx.problems import ProblemSpec
@@ -60,8 +60,8 @@ def estimate_memory(spec, values, pair, options=None, steps=0, ranks=1, inspect=
     disc levels 4-5; inspections 0.75). In 3-D (``counts["dim"]``, or a 3-component u) the
     factorisation's fill grows as n^(4/3): :func:`sdm_dolfinx.solvers.memory.run_bytes`, a fit of
     the ball's measured peak RSS (levels 1-4), of the factorised or the iterative strategy
-    (``auto``: the factorised one where it fits in MEMORY_MARGIN of the memory available, as ``auto``
-    chooses, else the iterative one); on
+    (``auto``: the factorised one where it fits, by ``auto``'s own test
+    :func:`~sdm_dolfinx.solvers.memory.factorisation_fits`, else the iterative one); on
     several ranks each holds :func:`~sdm_dolfinx.solvers.memory.per_rank` of it (measured: not half
     on 2 ranks).
     """
@@ -83,7 +83,7 @@ def estimate_memory(spec, values, pair, options=None, steps=0, ranks=1, inspect=
             need = run_bytes(dim_w, dim, factorised=False)
         elif linear == "auto":           # auto takes cg-pmg or cg-gamg when the factorisation does not fit
             avail = mem_available()
-            fits = avail is None or per_rank(factorised, ranks) <= MEMORY_MARGIN * avail / ranks
+            fits, _ = factorisation_fits(dim_w, dim, ranks, None if avail is None else avail / ranks)
             need = factorised if fits else run_bytes(dim_w, dim, factorised=False)
         else:
             need = factorised

@@ -15,7 +15,7 @@ import numpy as np
 from sdm_dolfinx import compat
 from sdm_dolfinx.solvers import memory
 from sdm_dolfinx.solvers.base import VIError
-from sdm_dolfinx.solvers.factorisation import REDUNDANT_MAX_ROWS, mumps_margins
+from sdm_dolfinx.solvers.factorisation import mumps_margins
 from sdm_dolfinx.solvers.options import ksp_reason_name, scoped_options
 
 #: linear strategies of the semi-smooth Newton (see :class:`~sdm_dolfinx.solvers.semismooth.SemismoothNewton`)
@@ -87,14 +87,11 @@ def choose_strategy(num_constraints, spd, n=None, dim=2, comm=None, explain=Fals
            if spd else "K is not SPD")
     if name == "amg" and missing_package(name):
         name, why = "schur", f"{why}, but this PETSc has no hypre for amg"
-    need = memory.run_bytes(n, dim) if (spd and n is not None) else None
-    if need is not None and name == "schur":
+    if spd and n is not None and dim >= 3 and name == "schur":      # in 2-D auto does not look at memory
         comm = comm or MPI.COMM_WORLD
-        if n > REDUNDANT_MAX_ROWS:      # distributed: the factor is shared by the ranks (not all of the rest)
-            need = memory.per_rank(need, comm.size)
         avail = memory.available_per_rank(comm)
         if avail is not None:
-            fits = need <= memory.MEMORY_MARGIN * avail
+            fits, need = memory.factorisation_fits(n, dim, comm.size, avail)
             name = "schur" if fits else "cg-gamg"
             why = (f"a factorisation needs ~{need / 1e9:.2g} GB per rank, {avail / 1e9:.2g} GB available per rank"
                    f"{'' if fits else ': iterative'}")

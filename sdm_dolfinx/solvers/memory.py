@@ -23,6 +23,7 @@ of columns with ``schur``. In 2-D the factorisation always fitted at the sizes r
 """
 from mpi4py import MPI
 
+from sdm_dolfinx.solvers.factorisation import REDUNDANT_MAX_ROWS
 from sdm_dolfinx.solvers.schur import SCHUR_COLUMN_MEMORY, SCHUR_MAX_COLUMNS
 
 #: one process before any mesh (Python, dolfinx, PETSc, gmsh; measured 100-150 MB)
@@ -50,6 +51,17 @@ def run_bytes(n, dim, factorised=True):
         return ITERATIVE_3D * n
     columns = min(8.0 * n * SCHUR_MAX_COLUMNS, SCHUR_COLUMN_MEMORY)
     return FACTOR_3D[0] * n + FACTOR_3D[1] * n ** (4.0 / 3.0) + columns
+
+
+def factorisation_fits(n, dim, ranks, avail_per_rank):
+    """(whether a factorised run of dim W^h = ``n`` in ``dim`` dimensions fits in MEMORY_MARGIN of
+    ``avail_per_rank`` bytes (None: unknown, it fits), the bytes it needs per rank): above REDUNDANT_MAX_ROWS
+    the factor is distributed (:func:`per_rank`), below each rank holds it all. ``auto``'s test
+    (:func:`~sdm_dolfinx.solvers.active_set.choose_strategy`) and its memory estimate's."""
+    need = run_bytes(n, dim)
+    if n > REDUNDANT_MAX_ROWS:
+        need = per_rank(need, ranks)
+    return avail_per_rank is None or need <= MEMORY_MARGIN * avail_per_rank, need
 
 
 def per_rank(total, ranks):
