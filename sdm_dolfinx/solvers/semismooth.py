@@ -126,7 +126,12 @@ class SemismoothNewton:
         self.inactive = InactiveSetSolver(K, self.cdofs, self.lb, self.spd, self.linear, self.prefix, self.fac)
         # -<prefix>inexact_rtol t: with a multigrid strategy, the Krylov tolerance of an iteration whose active
         # set is new (default INEXACT_RTOL; 0: every solve to the full tolerance); see newton()
-        loose = PETSc.Options().getReal(self.prefix + "inexact_rtol", INEXACT_RTOL)
+        name = self.prefix + "inexact_rtol"
+        if PETSc.Options().hasName(name) and self.linear not in MULTIGRID_STRATEGIES:   # it would be ignored
+            raise VIError(f"-{name} (or -sdm_inexact_rtol) sets the loose Krylov tolerance of linear strategies "
+                          f"{' and '.join(MULTIGRID_STRATEGIES)}; {self.linear} solves every Newton system exactly: "
+                          f"remove it")
+        loose = PETSc.Options().getReal(name, INEXACT_RTOL)
         if not 0.0 <= loose < 1.0:
             raise VIError(f"-{self.prefix}inexact_rtol (or -sdm_inexact_rtol): {loose} is not in [0, 1)")
         self.tight = self.inactive.ksp.getTolerances()[0]
@@ -215,8 +220,7 @@ class SemismoothNewton:
                 if work is None:
                     work = (b.duplicate(), b.duplicate(), b.duplicate())
                 xc, lam = self._inexact(b, x, active, work, tol_lam, tol_x)
-            lam = np.where(active, lam, 0.0)
-            infeasible = np.where(active, lam < -tol_lam, xc < lb - tol_x)
+            lam, infeasible = self._infeasible(xc, lam, active, tol_lam, tol_x)
             n_inf = self.comm.allreduce(int(np.count_nonzero(infeasible)), op=MPI.SUM)
             self.lam, self.active = lam, active
             # the Alart–Curnier residual |lam - max(0, lam - r (x - lb))|, for SNES monitors
@@ -240,6 +244,12 @@ class SemismoothNewton:
         raise VIError(f"semi-smooth Newton did not converge in {self.max_it} iterations "
                       f"({n_inf} constraints still infeasible)")
 
+    def _infeasible(self, xc, lam, active, tol_lam, tol_x):
+        """(the multipliers, zero off the active set; which constraints are infeasible: active with
+        lam < -tol_lam, inactive with x < lb - tol_x)."""
+        lam = np.where(active, lam, 0.0)
+        return lam, np.where(active, lam < -tol_lam, xc < self.lb - tol_x)
+
     def _inexact(self, b, x, active, work, tol_lam, tol_x):
         """(x at the constraints, multipliers) of the Newton system of active set ``active`` on the inactive
         set: with a multigrid strategy an inexact Newton step. A new active set's system is solved to the
@@ -250,8 +260,7 @@ class SemismoothNewton:
             return self.inactive.solve(b, x, active, work)
         self.inactive.ksp.setTolerances(rtol=self.loose)
         xc, lam = self.inactive.solve(b, x, active, work)
-        lam = np.where(active, lam, 0.0)
-        infeasible = np.where(active, lam < -tol_lam, xc < self.lb - tol_x)
+        _, infeasible = self._infeasible(xc, lam, active, tol_lam, tol_x)
         self.inactive.ksp.setTolerances(rtol=self.tight)
         if self.comm.allreduce(bool(infeasible.any()), op=MPI.LOR):
             return xc, lam
