@@ -47,3 +47,13 @@ def where_least(comm, values, x):
     k = int(np.argmin(values)) if values.size else -1
     _, owner = comm.allreduce((float(values[k]) if k >= 0 else np.inf, comm.rank), op=MPI.MINLOC)
     return np.asarray(comm.bcast(x[:, k] if comm.rank == owner else None, root=owner))
+
+
+def reference_positions(W):
+    """The owned coefficients of the identity x -> x interpolated into the vector space W (the reference
+    positions of its nodes; 0 at a bubble's dof, whose field the identity does not need)."""
+    from dolfinx import fem
+    gdim = W.mesh.geometry.dim
+    f = fem.Function(W)
+    f.interpolate(lambda x: x[:gdim])
+    return f.x.array[:owned_size(W)].copy()

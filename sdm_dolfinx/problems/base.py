@@ -138,6 +138,10 @@ class Problem:
             problem declares none (Nitsche is then refused in one line). The membrane has none
             on purpose: its constraint acts inside the domain, where Nitsche's boundary term
             has no meaning.
+        strain_energy: ``strain_energy(C)`` -> UFL, a hyperelastic strain energy density psi of the right
+            Cauchy-Green tensor C = F^T F (a (gdim, gdim) tensor; plane strain in 2-D), which the run option
+            ``material problem`` takes (:mod:`sdm_dolfinx.materials`); it must linearise at C = I to
+            ``a(u, w)`` (checked at set-up). None: the built-in materials only.
 
     The constrained boundary, where the time series' ``gap_min_boundary`` looks at every dof
     of W^h (P2 mid-edge nodes included, which the vertex constraint (13) does not hold), is
@@ -172,6 +176,7 @@ class Problem:
     obstacles: Sequence[Any] = ()
     contact_pairs: Sequence[ContactPair] = ()
     bodies: Sequence[Body] = ()
+    strain_energy: Optional[Callable[[UFL], UFL]] = None
 
     def __post_init__(self) -> None:
         self.validate()
@@ -209,6 +214,9 @@ class Problem:
         if self.stress is not None and not callable(self.stress):
             raise ProblemInputError(f"problem {self.name!r}: stress must be a callable u -> sigma(u) (UFL), or None "
                                     f"(got {type(self.stress).__name__})")
+        if self.strain_energy is not None and not callable(self.strain_energy):
+            raise ProblemInputError(f"problem {self.name!r}: strain_energy must be a callable C -> psi(C) (UFL), or "
+                                    f"None (got {type(self.strain_energy).__name__})")
         if self.time is not None and (not hasattr(self.time, "value") or np.shape(self.time.value) != ()):
             raise ProblemInputError(f"problem {self.name!r}: time must be a scalar fem.Constant used by l(w) "
                                     f"(got {type(self.time).__name__})")

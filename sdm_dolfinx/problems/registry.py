@@ -23,7 +23,7 @@ from sdm_dolfinx.problems.base import Problem, ProblemInputError, ProblemSpec, o
 _REGISTRY: dict[str, ProblemSpec] = {}
 #: the keys a ProblemSpec's ``defaults`` may hold: the run options a problem may default (those
 #: declared ``problem_default`` in :mod:`sdm_dolfinx.run.options`), and the unit of dt and T
-DEFAULT_KEYS = ("pair", "scheme", "dt", "T", "time_unit")
+DEFAULT_KEYS = ("pair", "scheme", "dt", "T", "material", "time_unit")
 
 
 def register(spec: ProblemSpec) -> ProblemSpec:

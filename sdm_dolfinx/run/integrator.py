@@ -33,6 +33,8 @@ from sdm_dolfinx.method.gap_solver import gap_solver
 from sdm_dolfinx.contact import friction as _friction, friction_bound as _friction_bound
 from sdm_dolfinx.contact.context import StepContext
 from sdm_dolfinx.run import prescribed as _prescribed, solver_rules
+from sdm_dolfinx.run.finite_strain_step import FiniteStrainStep
+from sdm_dolfinx.run.measures import Measures
 from sdm_dolfinx import schemes
 from sdm_dolfinx.errors import StepError
 from sdm_dolfinx.method.errors import DiscretisationError
@@ -43,7 +45,7 @@ from sdm_dolfinx.solvers.schur import SCHUR_MAX_ACTIVE_3D
 SCHEMES = schemes.names()
 
 
-class Integrator:
+class Integrator(Measures):
     """One scheme applied to one Discretisation with one time step.
 
     Args:
@@ -63,6 +65,11 @@ class Integrator:
         contact: ``"exact"`` (the VI, default) or a contact treatment of
             :mod:`sdm_dolfinx.contact` (``"penalty"``, ``"nitsche"``).
         contact_options: the treatment's parameters (``penalty``, ``nitsche_theta``, ``nitsche_gamma0``).
+        material: ``"linear"`` (the Problem's a(u, w), default) or a hyperelastic material of
+            :mod:`sdm_dolfinx.materials` (``"svk"``, ``"neo-hookean"``, ``"problem"``): the step is then
+            Newton's method on a nonlinear VI (:mod:`.finite_strain_step`).
+        newton: a hyperelastic run's tangent: ``"full"`` (every Newton iteration) or ``"modified"`` (once
+            per step).
 
     Raises:
         DiscretisationError: a combination the scheme or the treatment refuses (one line).
@@ -70,7 +77,8 @@ class Integrator:
     """
 
     def __init__(self, discretisation, scheme="midpoint", dt=1e-3, vi_solver="ssn", linear="auto", options=None,
-                 friction=None, scheme_options=None, contact="exact", contact_options=None):
+                 friction=None, scheme_options=None, contact="exact", contact_options=None, material="linear",
+                 newton="full"):
         self.time_scheme = ts = schemes.get(scheme).configure(scheme_options)
         self.discretisation, self.scheme, self.dt = discretisation, scheme, float(dt)
         self.contact, self.vi_solver = contact, vi_solver
@@ -83,6 +91,9 @@ class Integrator:
         self.nW = discretisation.A.getLocalSize()[0]
         self.friction = friction if friction is not None and friction.on else None
         self.treatment, self.state = None, None
+        #: the material of a hyperelastic run (:mod:`sdm_dolfinx.materials`), or None (linear)
+        self.finite_strain = None if material in (None, "linear") else material
+        self.newton = newton
         #: the Problem's Dirichlet parts (:class:`~.prescribed.Prescribed`: data lifted at every step,
         #: reactions and their work reported), or None
         self.parts = _prescribed.Prescribed() if discretisation.problem.dirichlet_parts else None
@@ -90,7 +101,8 @@ class Integrator:
         parts_refused = self.parts.refuse(self) if self.parts else None
         refused = refused or [r for r in (_obstacles.refusal(self, ts, vi_solver, linear), solver_rules.contact_refusal(self),
                                           parts_refused, _iterative.refusal(discretisation, linear, self.block),
-                                          _mb.refusal(discretisation, ts, contact), ts.refuse(self)) if r]
+                                          _mb.refusal(discretisation, ts, contact), ts.refuse(self),
+                                          solver_rules.finite_strain_refusal(self, vi_solver, linear)) if r]
         if refused:
             raise DiscretisationError(refused[0])
         ts.setup(self)
@@ -111,6 +123,8 @@ class Integrator:
         d = self.discretisation
         #: the linear strategy used, and why
         self.linear_strategy, self.linear_reason = linear, "asked for"
+        if linear == "auto" and self.finite_strain:      # a new nonsymmetric tangent: one LU each
+            linear, self.linear_strategy, self.linear_reason = "schur", "schur", "auto: a hyperelastic run's tangent"
         if linear == "auto":
             n = d.A.getSize()[0] + (d.C.getSize()[0] if self.block else 0)
             linear, why = choose_strategy(d.num_constraints, not self.block, n, d.problem.mesh.topology.dim, d.comm,
@@ -148,6 +162,10 @@ class Integrator:
         elif self.friction is None:
             if d.problem.mesh.topology.dim == 3:     # many more active vertices: see solvers.schur
                 options = {"schur_max_active": str(SCHUR_MAX_ACTIVE_3D), **(options or {})}
+            if self.finite_strain:
+                self.solver = FiniteStrainStep(self, self.finite_strain, self.newton, linear, options)
+                self.apply_step = self.solver.residual
+                return
             self.solver = make_vi_solver(vi_solver, self.K, d.cdofs, self.time_scheme.solver_bounds(self),
                                          symmetric_positive=not self.block, linear=linear, options=options,
                                          factor_matrix=self.factor_matrix)
@@ -171,6 +189,8 @@ class Integrator:
         elif K is None:
             K = _step_matrix.block_matrix(d, self.alpha)
         self.K_full = K
+        #: y <- the step's K X (a hyperelastic run: c_M M X + c_A F_int(X; U^n)), for the reactions
+        self.apply_step = K.mult
         # Dirichlet dofs (constant values g): identity rows and columns, lifting z = K g
         self.K, self.gsys, self.lift = (_matrix_free.eliminate(K, d, *self.coefficients) if self.matrix_free
                                         else _step_matrix.eliminate(K, d))
@@ -260,6 +280,8 @@ class Integrator:
         if ts.stateful and self.state is None:
             self.state = ts.start(self, U, V, t)
         b = ts.rhs(self, U, V, L, t)
+        if self.finite_strain:
+            self.solver.begin(U)
         X = self.X
         ts.guess(self, U, V, X)         # initial guess: the previous displacement
         try:
@@ -315,75 +337,6 @@ class Integrator:
         """Which owned constrained vertices slipped in the last step (the frictional step solver's
         slip set; None without friction)."""
         return None if self.friction is None else np.asarray(self.solver.slip, dtype=bool)
-
-    def initial_velocity(self, V):
-        """The velocity unknown of this formulation from Vbar0 in W^h: Vbar0 itself, or (block
-        variant) V0 in H^h with C V0 = B Vbar0 (condition (6) holds by construction)."""
-        if not self.block:
-            return V
-        bv = self.discretisation.B.createVecLeft()
-        self.discretisation.B.mult(V, bv)
-        return self.discretisation.solve_C(bv)
-
-    @property
-    def active(self):
-        """Which owned constrained dofs are active (the step solver's active set)."""
-        return getattr(self.solver, "active", np.zeros(len(self.discretisation.cdofs), dtype=bool))
-
-    @active.setter
-    def active(self, mask):
-        self.solver.active = mask
-
-    @property
-    def linear_its(self):
-        """Linear (Krylov) iterations of the step solver since the start of the run."""
-        return self.solver.total_linear_its
-
-    @property
-    def lam(self):
-        """Nodal contact forces of the last step at the owned constrained dofs (>= 0 pushes),
-        whatever the contact treatment."""
-        return self.solver.lam
-
-    def contact_energy(self, U, time=None):
-        """The energy stored in the contact treatment at the state U at ``time`` (a moving obstacle's
-        position; collective; 0.0 for the exact contact)."""
-        if self.treatment is None:
-            return 0.0
-        rows = self.discretisation.obstacle_rows
-        if time is not None and rows is not None and rows.moves:
-            return float(self.treatment.energy(U, time))
-        return float(self.treatment.energy(U))
-
-    def energies(self, U, V, time=None):
-        """(kinetic, potential) of the discrete energy J^h (Theorem 2); a time-dependent load
-        enters the potential at ``time``, the time of the state (see :meth:`load`)."""
-        d = self.discretisation
-        t = self._tmpW
-        d.A.mult(U, t)
-        pot = 0.5 * U.dot(t) - U.dot(self.load(time))
-        if self.block:
-            cv = d.C.createVecLeft()
-            d.C.mult(V, cv)
-            kin = 0.5 * V.dot(cv)
-        else:
-            self._mass(V, t)
-            kin = 0.5 * V.dot(t)
-        return kin, pot
-
-    def momentum(self, V, component):
-        """Discrete momentum e^T M Vbar (or (B e)^T V) along ``component``."""
-        d = self.discretisation
-        if component not in self._rigid:
-            self._rigid[component] = d.rigid_vector(component)
-        e = self._rigid[component]
-        if self.block:
-            be = d.B.createVecLeft()
-            d.B.mult(e, be)
-            return V.dot(be)
-        t = self._tmpW
-        self._mass(e, t)
-        return V.dot(t)
 
     def destroy(self):
         if self.treatment is not None:

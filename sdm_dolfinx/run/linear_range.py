@@ -12,8 +12,9 @@ rolling period is 0.61 T0, not the rigid disc's 1.22 T0 (docs/contact.md), howev
 Such a result is the linear model's, right to its tolerances and wrong as physics; without a warning
 nothing says so. A strain |ε|_F above 0.05 is beyond the small-strain range of any material law.
 
-Finite strain is issue 31 (not yet): the warning says what was exceeded, where and when, and that the
-run's answer is the linear model's.
+The warning says what was exceeded, where and when, that the run's answer is the linear model's, and
+the remedy: a hyperelastic material (run option ``material``: svk, neo-hookean; docs/finite_strain.md),
+whose runs are not watched (their rotations are exact).
 """
 from __future__ import annotations
 
@@ -126,5 +127,5 @@ class LinearRange:
             warnings.warn_explicit(
                 f"{' and '.join(said)}: beyond the linear (small-strain) model's range, whose rotation "
                 f"u = ω × x stretches the body by ω²/2; the run's answer is the linear model's, not the "
-                f"physical one (finite strain is not yet available; docs/contact.md)",
+                f"physical one: run it with material svk or neo-hookean (finite strain, docs/finite_strain.md)",
                 LinearRangeWarning, "sdm_dolfinx", 0)

@@ -132,7 +132,8 @@ class _Loop:
                 d, scheme, dt, vi_solver, kept[0] if kept else linear, petsc_options, friction,
                 scheme_options={p.name: o.get(p.name) for p in run_options.options_of("scheme", scheme)},
                 contact=o["contact"] or "exact",
-                contact_options={p.name: o.get(p.name) for p in run_options.options_of("contact", o["contact"])})
+                contact_options={p.name: o.get(p.name) for p in run_options.options_of("contact", o["contact"])},
+                material=o["material"] or "linear", newton=o["newton"] or "full")
         except (PETSc.Error, VIError) as e:  # e.g. a -sdm_ option PETSc (or the step solver) does not accept
             raise SolverSetupError(f"PETSc could not set up the step solver: {_petsc_message(e)}") from None
         if kept:
@@ -154,6 +155,8 @@ class _Loop:
                          "dt": dt, "vi_solver": vi_solver, "linear": linear, "ranks": self.comm.size,
                          "mesh": self.fingerprint,
                          **({"friction": friction.describe()} if friction is not None and friction.on else {}),
+                         **({"material": o["material"], "newton": o["newton"] or "full"}
+                            if self.integ.finite_strain else {}),
                          **_method_identity(o)}
         self.fields_of = {"U": (d.W, self.U), "V": (d.H if self.integ.block else d.W, self.V)}
         self.history = SolverHistory(self.integ)

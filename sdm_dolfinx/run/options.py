@@ -24,7 +24,7 @@ import warnings
 from collections.abc import Callable, Mapping
 from typing import Any, Optional
 
-from sdm_dolfinx import contact, schemes
+from sdm_dolfinx import contact, materials, schemes
 from sdm_dolfinx.contact import friction as _friction
 from sdm_dolfinx.errors import SdmError
 from sdm_dolfinx.method import quadrature
@@ -93,6 +93,14 @@ TABLE = (
               f"integer from 1 to {quadrature.MAX_DEGREE}", metavar="Q", group=RUN,
               parse_text=quadrature.parse, validate=quadrature.check, toml=(int, str),
               toml_expected=f"an integer, {quadrature.AUTO!r} or {quadrature.ESTIMATED!r}"),
+    RunOption("material", "linear", "the body's material: linear (the problem's a(u, w): small strains, default), svk "
+                                    "(Saint Venant-Kirchhoff), neo-hookean (compressible) or problem (the problem's "
+                                    "strain_energy(C)): total Lagrangian finite strain with the energy-momentum "
+                                    "midpoint scheme (docs/finite_strain.md)", type=str, choices=materials.names,
+              noun="material", group=RUN, identity=True, problem_default=True),
+    RunOption("newton", "full", "the tangent of a hyperelastic material's step: full (a new one at every Newton "
+                                "iteration, default) or modified (the step's first, one factorisation per step)",
+              type=str, choices=("full", "modified"), noun="newton", group=RUN, identity=True),
     RunOption("friction", None, "friction at the constrained vertices (default none): coulomb = |lam_T| <= mu lam_N; "
                                 "tresca = |lam_T| <= threshold x the vertex's boundary measure at every constrained "
                                 "vertex, in contact or not (for a body in lasting contact)", type=str,
@@ -308,6 +316,9 @@ def _rules(o: Mapping[str, Any], label: Mapping[str, str]) -> list[str]:
     if o.get("friction") in _friction.LAWS:
         errors += _friction.check_solver(o.get("friction"), o.get("vi_solver"), o.get("linear"))
     errors += solver_rules.treatment_solver(o, label) or solver_rules.snes_linear(o, label)
+    if o.get("newton") == "modified" and materials.is_linear(o.get("material")):       # it would be ignored
+        errors.append(f"{label['newton']} modified is the tangent of a hyperelastic material's step; "
+                      f"{label['material']} linear has a constant step matrix: remove {label['newton']}")
     missing = missing_package(o.get("linear"))
     if missing and o.get("vi_solver") in (None, "ssn"):
         errors.append(f"{label['linear']} {o['linear']} {missing}")

@@ -99,7 +99,7 @@ class Prescribed:
         ``ddofs``), reduced over the ranks, into ``info`` (``reactions`` in the order of
         :attr:`reaction_keys`, ``dirichlet_work``)."""
         d = integ.discretisation
-        integ.K_full.mult(X, self.KX)
+        integ.apply_step(X, self.KX)
         R = self.KX.array_r[d.ddofs] - self.b_dirichlet
         dU = U.array_r[d.ddofs] - Un_D
         local = np.zeros(len(self.reaction_keys) + 1)

@@ -75,6 +75,19 @@ def dirichlet_columns(problem: Problem) -> tuple[str, ...]:
     return (*(c for part in parts for c in part.columns(shape)), DIRICHLET_WORK)
 
 
+#: the columns of a hyperelastic run (run option ``material``, docs/finite_strain.md): the step's Newton
+#: iterations on its nonlinear VI and the tangents factorised in it (``newton_its`` counts the semi-smooth
+#: Newton's active-set iterations over all of them), and the angular momentum sum_ab M_ab x_a x Vbar_b
+#: about the origin (x = X + U; 3-D: one column per axis)
+FINITE_STRAIN_COLUMNS = ("nonlinear_its", "tangents")
+
+
+def finite_strain_columns(gdim: int) -> tuple[str, ...]:
+    """The columns of a hyperelastic run in ``gdim`` dimensions (:data:`FINITE_STRAIN_COLUMNS`)."""
+    angular = ("angular_momentum",) if gdim == 2 else tuple(f"angular_momentum_{a}" for a in "xyz")
+    return (*FINITE_STRAIN_COLUMNS, *angular)
+
+
 #: the column of a run whose contact is not exact (penalty, Nitsche): the energy stored in the
 #: contact term at U^{n+1} (``Integrator.contact_energy``); ``energy`` includes it
 CONTACT_ENERGY = "contact_energy"
@@ -123,6 +136,9 @@ class Formulation(Protocol):
     def load(self, t: Optional[float] = None) -> PETSc.Vec:
         """The load vector L at time ``t``."""
 
+    def angular_momentum(self, U: PETSc.Vec, V: PETSc.Vec) -> Union[float, list[float]]:
+        """The angular momentum of the state about the origin (2-D: a float; 3-D: three)."""
+
 
 class TimeSeries:
     """The scalar history of a run: one row per step (row 0 = the initial state).
@@ -150,8 +166,10 @@ class TimeSeries:
         if d.obstacle_rows is not None and d.obstacle_rows.moves:      # moving obstacles: their work only
             obstacle = OBSTACLE_COLUMNS[:1]
         per_body = body_columns.columns(problem)
+        finite = (finite_strain_columns(problem.mesh.geometry.dim) if getattr(formulation, "finite_strain", None)
+                  else ())
         self.columns: tuple[str, ...] = (BASE_COLUMNS + contact + tuple(problem.extra_columns) + friction_cols
-                                         + boundary + dirichlet + obstacle + per_body)
+                                         + boundary + dirichlet + obstacle + per_body + finite)
         #: the per-body and per-pair columns (:mod:`.body_columns`), or None
         self.body_columns = body_columns.BodyColumns(d) if per_body else None
         self.data = {c: np.zeros(nsteps + 1) for c in self.columns}
@@ -160,7 +178,7 @@ class TimeSeries:
         self.boundary_sink = BoundarySink(d) if boundary else None
         #: the largest cell rotation and strain of the run (a vector displacement in 2-D or 3-D), or None
         self.linear_range = (LinearRange(d.W) if LinearRange.applies(tuple(problem.shape), problem.mesh.geometry.dim)
-                             else None)
+                             and not finite else None)
 
     def record(self, n: int, t: float, U: PETSc.Vec, V: PETSc.Vec, lam: npt.NDArray[np.float64], its: int,
                n_active: int, step: Optional[Mapping[str, Any]] = None, *, linear_its_total: int,
@@ -204,12 +222,23 @@ class TimeSeries:
             self.linear_range.watch(n, t, U)
         if self.body_columns is not None:
             row.update(self.body_columns.values(U, V, lam if step is not None else np.zeros(0)))
+        if "nonlinear_its" in self.columns:
+            self._finite_strain_row(row, U, V, step or {})
         row["linear_its_total"] = linear_its_total
         if not np.isfinite(row["energy"]):
             raise StepError(f"step {n} (t = {t:.6g}): the energy is not finite ({row['energy']})")
         for c in self.columns:
             self.data[c][n] = row[c]
         return row
+
+    def _finite_strain_row(self, row: Row, U: PETSc.Vec, V: PETSc.Vec, step: Mapping[str, Any]) -> None:
+        """The :func:`finite_strain_columns` of a row (the iteration counts 0 in row 0)."""
+        row.update(nonlinear_its=step.get("nonlinear_its", 0), tangents=step.get("tangents", 0))
+        angular = self.formulation.angular_momentum(U, V)
+        if isinstance(angular, float):
+            row["angular_momentum"] = angular
+        else:
+            row.update(zip((f"angular_momentum_{a}" for a in "xyz"), angular))
 
     def _friction_row(self, row: Row, n: int, step: Mapping[str, Any],
                       slip: Optional[npt.NDArray[np.float64]]) -> None:

@@ -25,10 +25,10 @@ def simulate(problem: Union[Problem, ProblemSpec, str, Path, None] = None, param
              allow_changed_source: bool = False, comm: Optional[MPI.Comm] = None, pair: Union[str, Pair, None] = None,
              scheme: Optional[str] = None, dt: Optional[float] = None, T: Optional[float] = None,
              mass: Optional[str] = None, vi_solver: Optional[str] = None, linear: Optional[str] = None,
-             quadrature_degree: Union[int, str, None] = None, friction: Optional[str] = None,
-             constrain: Optional[str] = None, contact: Optional[str] = None, write_every: Optional[int] = None,
-             checkpoint_every: Optional[int] = None, scheme_options: Optional[Mapping[str, Any]] = None,
-             contact_options: Optional[Mapping[str, Any]] = None,
+             quadrature_degree: Union[int, str, None] = None, material: Optional[str] = None,
+             newton: Optional[str] = None, friction: Optional[str] = None, constrain: Optional[str] = None,
+             contact: Optional[str] = None, write_every: Optional[int] = None, checkpoint_every: Optional[int] = None,
+             scheme_options: Optional[Mapping[str, Any]] = None, contact_options: Optional[Mapping[str, Any]] = None,
              friction_options: Optional[Mapping[str, Any]] = None,
              progress: bool = False, handle_signals: bool = False, on_step: Optional[OnStep] = None,
              observe: Optional[Callable[..., object]] = None, petsc_options: Optional[Mapping[str, Any]] = None,
@@ -51,10 +51,10 @@ def simulate(problem: Union[Problem, ProblemSpec, str, Path, None] = None, param
             extended so). ``allow_changed_source``: continue although the problem file or the package's
             version changed since the run started (refused otherwise); run.json records what changed.
         comm: the ranks of a declared problem (default ``MPI.COMM_WORLD``); a Problem's are its mesh's.
-        pair, scheme, dt, T, mass, vi_solver, linear, quadrature_degree, friction, constrain, contact,
-            write_every, checkpoint_every: the run options (:data:`sdm_dolfinx.run.options.TABLE`:
-            their values and defaults; None: the default, for ``pair``, ``scheme``, ``dt`` and ``T``
-            a declared problem's own). ``pair`` may be a :class:`~sdm_dolfinx.method.pairs.Pair`.
+        pair, scheme, dt, T, mass, vi_solver, linear, quadrature_degree, material, newton, friction, constrain,
+            contact, write_every, checkpoint_every: the run options (:data:`sdm_dolfinx.run.options.TABLE`:
+            their values and defaults; None: the default, for ``pair``, ``scheme``, ``dt``, ``T`` and
+            ``material`` a declared problem's own). ``pair`` may be a :class:`~sdm_dolfinx.method.pairs.Pair`.
         scheme_options, contact_options, friction_options: the options of the chosen scheme,
             contact treatment and friction law, as each declares them (docs/methods.md):
             ``{"hht_alpha": -0.1}``, ``{"penalty": 1e5}``, ``{"mu": 0.3}``; one given to a method
@@ -85,7 +85,7 @@ def simulate(problem: Union[Problem, ProblemSpec, str, Path, None] = None, param
     """
     given = run_options.collect(
         {"pair": pair, "scheme": scheme, "dt": dt, "T": T, "mass": mass, "vi_solver": vi_solver, "linear": linear,
-         "quadrature_degree": quadrature_degree, "friction": friction, "constrain": constrain, "contact": contact,
+         "quadrature_degree": quadrature_degree, "material": material, "newton": newton, "friction": friction, "constrain": constrain, "contact": contact,
          "write_every": write_every, "checkpoint_every": checkpoint_every, "scheme_options": scheme_options,
          "contact_options": contact_options, "friction_options": friction_options, **deprecated})
     session: dict[str, Any] = dict(progress=progress, handle_signals=handle_signals, on_step=on_step,

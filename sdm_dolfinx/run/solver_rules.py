@@ -47,3 +47,32 @@ def contact_refusal(integ):
         return (f"contact {integ.contact!r} is written in the M formulation; mass 'consistent' solves the "
                 f"(U, V) block system: use mass 'lumped'")
     return None
+
+
+def finite_strain_refusal(integ, vi_solver, linear):
+    """The refusal of a hyperelastic material (``integ.finite_strain``) with what its step does not take yet,
+    or of ``newton modified`` with the linear material (it would be ignored), or None."""
+    from sdm_dolfinx.problems.base import EQUILIBRIUM
+    from sdm_dolfinx.run.finite_strain_step import NEWTON, STRATEGIES
+    d, ts, m = integ.discretisation, integ.time_scheme, integ.finite_strain
+    if integ.newton not in NEWTON:
+        return f"unknown newton {integ.newton!r}; choose one of {', '.join(NEWTON)}"
+    if m is None:
+        return (None if integ.newton == "full" else
+                "newton 'modified' is the tangent of a hyperelastic material's step; material linear has a constant "
+                "step matrix: remove newton")
+    where = f"material {m!r}"
+    p = d.problem
+    not_yet = [(ts.finite_strain is None, f"scheme {integ.scheme!r} (use midpoint: energy-momentum, or backward-euler)"),
+               (integ.friction is not None, "friction"), (integ.contact != "exact", f"contact {integ.contact!r}"),
+               (integ.block, "mass 'consistent' (the (U, V) block system)"),
+               (vi_solver != "ssn", f"vi_solver {vi_solver!r}"),
+               (linear not in ("auto", *STRATEGIES), f"linear {linear!r} (use {', '.join(STRATEGIES)})"),
+               (p.obstacles or p.contact_pairs or d.weighted_rows is not None,
+                "obstacles, contact pairs or constrain 'weighted' (gap rows)"),
+               (bool(p.bodies), "a mesh of several bodies (the per-body columns)"),
+               (isinstance(p.u0, str) and p.u0 == EQUILIBRIUM, "the equilibrium start (a linear static solve)")]
+    for refused, what in not_yet:
+        if refused:
+            return f"{where} does not take {what} yet: use material linear for it"
+    return None

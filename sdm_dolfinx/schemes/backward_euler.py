@@ -16,6 +16,7 @@ class BackwardEuler(Scheme):
     constrained = "U^{n+1}"
     load_theta = 1.0                # L(t_{n+1})
     moving_dirichlet = True
+    finite_strain = "endpoint"          # a hyperelastic material: the stress at U^{n+1}
 
     def dirichlet_iterate(self, u_next, Un):
         """X = U^{n+1} = u_D(t_{n+1})."""

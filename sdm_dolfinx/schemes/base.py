@@ -59,6 +59,9 @@ class Scheme:
             cannot restart it).
         moving_dirichlet: the scheme takes the Problem's Dirichlet parts (data that may move,
             :meth:`dirichlet_iterate`); the others refuse a Problem declaring any, in one line.
+        finite_strain: the internal force of a hyperelastic material's step
+            (:data:`sdm_dolfinx.materials.algorithmic.KINDS`: ``"energy-momentum"``, ``"endpoint"``), or
+            None: the scheme refuses a hyperelastic material in one line.
     """
     name: Optional[str] = None
     factor: Optional[float] = None
@@ -69,6 +72,7 @@ class Scheme:
     explicit: bool = False
     stateful: bool = False
     moving_dirichlet: bool = False
+    finite_strain: Optional[str] = None
 
     # ------------------------------------------------------------------ set-up
     def configure(self: _S, options: Optional[Mapping[str, Any]] = None) -> _S:

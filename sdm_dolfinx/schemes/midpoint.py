@@ -50,6 +50,7 @@ class Midpoint(Scheme):
     constrained = "U^{n+1/2}"
     load_theta = 0.5                # L(t_{n+1/2})
     moving_dirichlet = True
+    finite_strain = "energy-momentum"     # a hyperelastic material: P_alg of sdm_dolfinx.materials.algorithmic
 
     def dirichlet_iterate(self, u_next, Un):
         """X = (U^n + u_D(t_{n+1}))/2: U^{n+1} = 2 X - U^n = u_D(t_{n+1}) exactly (module docstring)."""
@@ -68,7 +69,11 @@ class Midpoint(Scheme):
     def guess(self, integ, U, V, X):
         """U^n; with a multigrid strategy (whose Krylov iterations start from the guess) the predictor
         U^n + Vbar^n / alpha, which is X when Vbar^{n+1} = Vbar^n: in flight its error is O(dt^2) where
-        U^n's is O(dt). The ball (level 3, 6 steps, cg-pmg): 22 % less time (bench/README.md)."""
+        U^n's is O(dt). The ball (level 3, 6 steps, cg-pmg): 22 % less time (bench/README.md). A hyperelastic run
+        starts from U^n: on the singular mass's massless modes Vbar^n alternates in sign (the midpoint rule's
+        stability function is -1 at infinity), and the predictor, moved by it, took a neo-Hookean step's Newton
+        iterations out of their basin (P2/P1, a square spinning from a strained U^0: no convergence at step 20,
+        against 2 iterations per step from U^n)."""
         super().guess(integ, U, V, X)
         if integ.linear_strategy in MULTIGRID_STRATEGIES and not integ.block:
             X.array[:integ.nW] += V.array_r / integ.alpha

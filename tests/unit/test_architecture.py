@@ -13,7 +13,7 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[2] / "sdm_dolfinx"
 
 #: the layers, bottom first: a module may import its own layer's package and the ones below
-LAYERS = {"compat": 0, "mpiutil": 0, "errors": 0, "params": 0.5, "obstacles": 0.75, "problems": 1, "solvers": 1, "method": 2, "schemes": 3,
+LAYERS = {"compat": 0, "mpiutil": 0, "errors": 0, "params": 0.5, "obstacles": 0.75, "materials": 0.8, "problems": 1, "solvers": 1, "method": 2, "schemes": 3,
           "contact": 3, "io": 4, "run": 5, "analysis": 6, "post": 6, "study": 7, "paper": 8, "compare": 8,
           "validation": 8, "report": 9, "cli": 10}
 #: the package's entry points, which may import any layer (``__init__`` re-exports the public API

@@ -65,7 +65,7 @@ def test_simulate_defaults_are_the_tables():
 def test_restart_and_identity_come_from_the_table():
     assert run_options.RESTART_MAY_CHANGE == ("checkpoint_every",)
     assert run_restart.IDENTITY_KEYS == ("problem", "sdm_dolfinx", "pair", "mass", "scheme", "dt", "vi_solver", "linear",
-                                         "ranks")
+                                         "material", "newton", "ranks")
 
 
 def test_command_line_options_are_the_declarations():

@@ -1,0 +1,151 @@
+"""The step of a hyperelastic run: Newton's method on a nonlinear variational inequality, each
+iteration one LCP of the linear kind, solved by the semi-smooth Newton.
+
+The step's equation is the linear scheme's with the internal force F_int(X; U^n) of
+:mod:`sdm_dolfinx.method.finite_strain` in place of A X: with b the scheme's right-hand side
+(L + M (alpha Vbar^n + alpha^2 U^n) for the midpoint scheme and backward Euler),
+
+    r(X) = c_M M X + c_A F_int(X; U^n) - b,    r(X) = lam,  X_c >= lb,  lam >= 0,  lam . (X_c - lb) = 0
+
+at the constrained dofs (r(X) = 0 elsewhere, X given at the Dirichlet dofs). Josephy-Newton: at the
+iterate X_k, with the tangent T_k = dF_int/dX(X_k) and K_k = c_M M + c_A T_k, the next iterate solves the
+LCP  K_k X = K_k X_k - r(X_k) + lam  (the semi-smooth Newton of :mod:`sdm_dolfinx.solvers`, warm-started
+from the previous active set); it converges quadratically near the solution. ``newton="full"`` takes a
+new tangent at every iteration (one factorisation each); ``"modified"`` keeps the step's first one
+(one factorisation per step, linear convergence). The step ends when the residual, with the
+multipliers of the active constraints taken out, is below :data:`RTOL` of the step's scale
+(max |b|, max |c_A F_int|); it fails, naming the residual, after :data:`MAX_IT` iterations.
+
+The tangent is not symmetric (the energy-momentum stress mixes t_n and t_{n+1}): its LCPs are
+solved with one LU factorisation (``schur``, the default) or ``lu``/``cg-factor``.
+"""
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import numpy as np
+
+from sdm_dolfinx.method import step_matrix as _step_matrix
+from sdm_dolfinx.method.finite_strain import FiniteStrain
+from sdm_dolfinx.solvers import VIError, make_vi_solver
+
+#: the convergence of a step's Newton iterations, relative to the step's scale
+RTOL = 1e-10
+#: Newton iterations before a step fails
+MAX_IT = 30
+#: the ways to take the tangent
+NEWTON = ("full", "modified")
+#: the linear strategies that can solve a nonsymmetric LCP with one factorisation per tangent
+STRATEGIES = ("schur", "lu", "cg-factor")
+
+
+class FiniteStrainStep:
+    """The step solver of a hyperelastic run of ``integ`` (its scheme, K's coefficients, the Dirichlet
+    dofs), with the material ``material`` and ``newton`` (:data:`NEWTON`)."""
+
+    def __init__(self, integ, material, newton, linear, options):
+        d, ts = integ.discretisation, integ.time_scheme
+        self.integ, self.discretisation, self.newton = integ, d, newton
+        self.linear, self.options = ("schur" if linear == "auto" else linear), options
+        self.forms = FiniteStrain(d, material, ts.finite_strain)
+        self.c_M, self.c_A = integ.coefficients
+        self.lb = ts.solver_bounds(integ)
+        self.Un, self.F, self.r, self.MX = (d.A.createVecRight() for _ in range(4))
+        self.free = np.ones(self.Un.getLocalSize(), dtype=bool)
+        self.free[d.ddofs] = False
+        self.lcp = None
+        self.active = np.zeros(len(d.cdofs), dtype=bool)
+        self.lam = np.zeros(len(d.cdofs))
+        self._linear_its, self.prefix = 0, "sdm_fs_"
+
+    @property
+    def total_linear_its(self):
+        """Linear iterations of the LCP solvers since the start of the run."""
+        return self._linear_its + (self.lcp.total_linear_its if self.lcp is not None else 0)
+
+    def begin(self, U):
+        """The step starts from U^n = ``U``."""
+        U.copy(self.Un)
+
+    def residual(self, X, out):
+        """out <- c_M M X + c_A F_int(X; U^n) (the step's K X of a linear run; the Dirichlet parts'
+        reactions are out - b there)."""
+        self.integ.mass_mult(X, self.MX)
+        self.forms.force(X, self.Un, self.F)
+        out.array[:] = self.c_M * self.MX.array_r + self.c_A * self.F.array_r
+        return out
+
+    def _tangent(self, X):
+        """A new LCP solver with K = c_M M + c_A T(X), the Dirichlet rows eliminated (collective)."""
+        d = self.discretisation
+        K = self.forms.tangent(X, self.Un)
+        K.scale(self.c_A)
+        K.axpy(self.c_M, d.M, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+        _step_matrix.identity_rows(K, d.ddofs)
+        if self.lcp is not None:
+            self._linear_its += self.lcp.total_linear_its
+            self.lcp.destroy()
+            self.K.destroy()
+        self.lcp = make_vi_solver("ssn", K, d.cdofs, self.lb, symmetric_positive=False, linear=self.linear,
+                                  options=self.options, prefix=self.prefix)
+        self.lcp.active = self.active.copy()
+        self.K = K
+
+    def solve(self, b, X):
+        """Solve the step for the scheme's lifted right-hand side ``b`` (its linear lifting undone here);
+        X holds the initial guess and the result. Returns the info of the step (``its``: the semi-smooth
+        Newton's iterations in all, ``nonlinear_its``, ``tangents``, ``n_active``)."""
+        d, comm, integ = self.discretisation, self.discretisation.comm, self.integ
+        free, c = self.free, d.cdofs
+        braw = b.copy()
+        braw.array[free] += integ.lift.array_r[free]        # b before the linear lifting b - K g
+        X.array[~free] = b.array_r[~free]                   # the Dirichlet values of the iterate
+        bscale = comm.allreduce(float(np.max(np.abs(braw.array_r[free]), initial=0.0)), op=MPI.MAX)
+        its = tangents = 0
+        rhs = b.duplicate()
+        for k in range(1, MAX_IT + 1):
+            self.residual(X, self.r)
+            res = self.r.array_r - braw.array_r
+            scale = max(bscale, comm.allreduce(float(np.max(np.abs(self.c_A * self.F.array_r), initial=0.0)),
+                                               op=MPI.MAX), 1e-300)
+            if k > 1 and self._error(res, scale) <= RTOL:
+                break
+            if self.lcp is None or self.newton == "full" or k == 1:
+                self._tangent(X)
+                tangents += 1
+            self.K.mult(X, rhs)
+            rhs.array[free] -= res[free]
+            rhs.array[~free] = X.array_r[~free]
+            try:
+                its += self.lcp.solve(rhs, X)["its"]
+            except VIError as e:
+                raise VIError(f"Newton iteration {k} of the finite-strain step: {e}") from None
+            self.active = self.lcp.active.copy()
+        else:
+            raise VIError(f"the finite-strain Newton did not converge in {MAX_IT} iterations (residual "
+                          f"{self._error(res, scale):.3g} of the step's scale, tolerance {RTOL:g}; newton "
+                          f"{self.newton}): a smaller time step, or newton full")
+        self.lam = np.where(self.active, res[c], 0.0)
+        rhs.destroy()
+        braw.destroy()
+        n_active = comm.allreduce(int(np.count_nonzero(self.active)), op=MPI.SUM)
+        return {"its": its, "n_active": n_active, "nonlinear_its": k - 1, "tangents": tangents}
+
+    def _error(self, res, scale):
+        """max |residual| off the Dirichlet dofs, the active constraints' (nonnegative) multipliers
+        taken out, over ``scale`` (collective)."""
+        e = np.abs(np.where(self.free, res, 0.0))
+        c = self.discretisation.cdofs
+        e[c[self.active]] = np.abs(np.minimum(res[c[self.active]], 0.0))
+        return self.discretisation.comm.allreduce(float(np.max(e, initial=0.0)), op=MPI.MAX) / scale
+
+    def strain_energy(self, U):
+        """int psi(C(U)) dx (collective)."""
+        return self.forms.energy(U)
+
+    def destroy(self):
+        if self.lcp is not None:
+            self.lcp.destroy()
+            self.K.destroy()
+        self.forms.destroy()
+        for v in (self.Un, self.F, self.r, self.MX):
+            v.destroy()

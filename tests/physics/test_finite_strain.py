@@ -1,0 +1,221 @@
+"""Finite strain (run option ``material``): the energy-momentum midpoint scheme conserves the energy and
+both momenta of a free body to the tolerance of its Newton iterations, a homogeneous deformation is
+reproduced to round-off on a distorted mesh with the closed-form stress of each material, a problem's
+own psi(C) runs like the built-in law it writes, and what the hyperelastic step does not take is refused
+in one line.
+
+Runs on 1 and 2 ranks; every number checked is an exact identity of the scheme or a closed form."""
+import warnings
+
+from mpi4py import MPI
+from petsc4py import PETSc
+
+import numpy as np
+import pytest
+import ufl
+from dolfinx import fem, mesh as dmesh
+
+from sdm_dolfinx import DirichletPart, Problem, simulate
+from sdm_dolfinx.method.errors import DiscretisationError
+from sdm_dolfinx.run.finite_strain_step import RTOL
+from sdm_dolfinx.run.options import RunInputError
+
+COMM = MPI.COMM_WORLD
+#: the square's Lame parameters (plane strain), its angular velocity and the time step of the spin
+LAM, MU, OMEGA, DT = 2.0, 1.0, 2.0, 0.05
+
+
+def svk_psi(C):
+    """Saint Venant-Kirchhoff written by hand, as a problem file would (``material problem``)."""
+    E = 0.5 * (C - ufl.Identity(ufl.shape(C)[0]))
+    return 0.5 * LAM * ufl.tr(E) ** 2 + MU * ufl.inner(E, E)
+
+
+def body(msh, u0, v0, parts=(), psi=None, lam=LAM, mu=MU, columns=("momentum_x", "momentum_y")):
+    """A free plane-strain or 3-D body of density 1 on ``msh``: no load, no contact, Hooke's a(u, w) of
+    (lam, mu), which every material linearises to."""
+    gdim = msh.geometry.dim
+    eps = lambda u: ufl.sym(ufl.grad(u))                                                # noqa: E731
+    sigma = lambda u: lam * ufl.tr(eps(u)) * ufl.Identity(gdim) + 2 * mu * eps(u)       # noqa: E731
+    zero = fem.Constant(msh, np.zeros(gdim, dtype=PETSc.ScalarType))
+    return Problem(name="free_body", mesh=msh, shape=(gdim,), a=lambda u, w: ufl.inner(sigma(u), eps(w)) * ufl.dx,
+                   l=lambda w: ufl.inner(zero, w) * ufl.dx, u0=u0, v0=v0,
+                   constraint_vertices=lambda m: np.zeros(0, dtype=np.int32),
+                   lower_bound=lambda x: np.zeros(x.shape[1]), constraint_component=1,
+                   constraint_measure=lambda q: q * ufl.ds, dirichlet_parts=list(parts), probe=(0.5,) * gdim,
+                   extra_columns=columns, momentum_component=1, strain_energy=psi,
+                   parameters={"lame_lambda": lam, "lame_mu": mu})
+
+
+def spinning_square(psi=None, n=4):
+    """The unit square spinning about its centre at OMEGA, plus a small deformation rate, from u0 = 0."""
+    msh = dmesh.create_unit_square(COMM, n, n)
+    v0 = lambda x: np.array([-OMEGA * (x[1] - 0.5) + 0.1 * (x[0] - 0.5) ** 2, OMEGA * (x[0] - 0.5)])  # noqa: E731
+    return body(msh, lambda x: np.zeros((2, x.shape[1])), v0, psi=psi)
+
+
+def drift(column, scale):
+    """max |column - column[0]| / scale."""
+    return float(np.max(np.abs(column - column[0]))) / scale
+
+
+@pytest.mark.parametrize("material", ["svk", "neo-hookean", "problem"])
+def test_spinning_square_conserves_energy_and_momenta(material):
+    """Three revolutions (188 steps of 0.05, omega = 2, stretches up to ~10 %): the energy, both linear
+    momenta and the angular momentum stay at their initial values to the Newton tolerance (the residual
+    is 1e-10 of the step's scale; every step of the scheme conserves them exactly at the solution)."""
+    r = simulate(spinning_square(svk_psi if material == "problem" else None), pair="P2/P1", material=material,
+                 dt=DT, T=9.4)
+    d = r.timeseries
+    E0, L0 = d["energy"][0], d["angular_momentum"][0]
+    assert L0 > 0.25        # omega I_z = 1/3 for the continuum; the lumped P1 velocity's M has less inertia
+    assert drift(d["energy"], E0) < 1e3 * RTOL
+    assert drift(d["angular_momentum"], abs(L0)) < 1e3 * RTOL
+    p_scale = OMEGA * 0.5           # |M Vbar| of the rotation's velocities, for the zero total momentum
+    assert drift(d["momentum_x"], p_scale) < 1e3 * RTOL and drift(d["momentum_y"], p_scale) < 1e3 * RTOL
+    assert d["potential"].max() > 1e-3 * E0        # the body does deform (a test of a rigid motion would be idle)
+    assert np.all(d["nonlinear_its"][1:] >= 1) and d["nonlinear_its"].max() <= 8
+
+
+def area(result):
+    """The area of the deformed body, int det(I + grad u) dx, at the run's final state."""
+    d = result.discretisation
+    u = fem.Function(d.W)
+    u.x.array[:len(result.U.array)] = result.U.array
+    u.x.scatter_forward()
+    form = fem.form(ufl.det(ufl.Identity(2) + ufl.grad(u)) * ufl.dx)
+    return COMM.allreduce(fem.assemble_scalar(form), op=MPI.SUM)
+
+
+def test_linear_model_spins_into_a_swollen_body():
+    """The same spin, half a revolution, with the linear model: its velocity omega x (X - c) is an
+    infinitesimal rotation, of zero linear strain, so every point moves on a straight line and the square's
+    area grows as 1 + (omega t)^2 (11 at theta = pi) at no elastic energy; the hyperelastic run keeps its
+    area within the centrifugal stretch."""
+    half = round(np.pi / OMEGA / DT) * DT
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        lin = simulate(spinning_square(), pair="P2/P1", dt=DT, T=half)
+    if COMM.rank == 0:                  # the linear-range warning (rank 0) names the remedy
+        assert any("material svk or neo-hookean" in str(w.message) for w in caught)
+    svk = simulate(spinning_square(), pair="P2/P1", material="svk", dt=DT, T=half)
+    assert area(lin) == pytest.approx(1 + (OMEGA * half) ** 2, rel=0.01)
+    assert area(svk) == pytest.approx(1.0, abs=0.1)
+
+
+def test_spinning_cube_conserves_angular_momentum():
+    """A cube spinning about z (P2/P1 tetrahedra), 40 steps: energy and the three components of the
+    angular momentum to the Newton tolerance."""
+    msh = dmesh.create_unit_cube(COMM, 2, 2, 2)
+    v0 = lambda x: np.array([-OMEGA * (x[1] - 0.5), OMEGA * (x[0] - 0.5) + 0.1 * (x[2] - 0.5) ** 2,  # noqa: E731
+                             0.05 * (x[0] - 0.5)])
+    p = body(msh, lambda x: np.zeros((3, x.shape[1])), v0, columns=())
+    d = simulate(p, pair="P2/P1", material="neo-hookean", dt=DT, T=40 * DT).timeseries
+    E0 = d["energy"][0]
+    assert drift(d["energy"], E0) < 1e3 * RTOL
+    Lz = d["angular_momentum_z"]
+    assert Lz[0] > 0.2      # omega I_z = 1/3 for the continuum (the coarse mesh's M has less)
+    for axis in "xyz":
+        assert drift(d[f"angular_momentum_{axis}"], abs(Lz[0])) < 1e3 * RTOL
+
+
+def test_modified_newton_reaches_the_same_steps():
+    """newton modified (one tangent per step) converges to the same steps as newton full, to the Newton
+    tolerance, with one tangent per step and more iterations."""
+    full = simulate(spinning_square(), pair="P2/P1", material="svk", dt=DT, T=20 * DT).timeseries
+    mod = simulate(spinning_square(), pair="P2/P1", material="svk", newton="modified", dt=DT, T=20 * DT).timeseries
+    assert np.all(mod["tangents"][1:] == 1)
+    assert mod["nonlinear_its"][1:].sum() > full["nonlinear_its"][1:].sum()
+    assert np.max(np.abs(mod["energy"] - full["energy"])) < 1e3 * RTOL * full["energy"][0]
+    assert np.max(np.abs(mod["u_probe"] - full["u_probe"])) < 1e-7
+
+
+# ------------------------------------------------------------------ the homogeneous patch test
+#: the rate of the uniaxial stretch: u_x = G t x, lambda(t) = 1 + G t
+G = 0.5
+
+
+def closed_form_reaction(material, l0, l1):
+    """The x-reaction on the side x = 1 (height 1) of the step from stretch l0 to l1 under uniaxial plane
+    strain F = diag(l, 1): P_alg_xx = F_mid_xx S_alg_xx of the energy-momentum stress, in closed form."""
+    def psi(c):                 # of C_xx = c (C_yy = 1)
+        if material == "svk":
+            e = 0.5 * (c - 1.0)
+            return 0.5 * LAM * e ** 2 + MU * e ** 2
+        lnJ = 0.5 * np.log(c)
+        return 0.5 * MU * (c - 1.0) - MU * lnJ + 0.5 * LAM * lnJ ** 2
+
+    def S(c):                   # S_xx = 2 dpsi/dC_xx
+        if material == "svk":
+            return (LAM + 2 * MU) * 0.5 * (c - 1.0)
+        return MU * (1.0 - 1.0 / c) + LAM * 0.5 * np.log(c) / c
+    c0, c1 = l0 ** 2, l1 ** 2
+    s = S(0.5 * (c0 + c1))
+    if material != "svk":       # Gonzalez's correction, dC = diag(c1 - c0, 0)
+        s += 2.0 * (psi(c1) - psi(c0) - 0.5 * s * (c1 - c0)) / (c1 - c0)
+    return 0.5 * (l0 + l1) * s
+
+
+def stretched_block():
+    """The unit square, its inner vertices moved by up to 0.3 h (a distorted mesh, the same on any number
+    of ranks), stretched along x by u_x = G t x (parts left and right, x only) with u_y = 0 on the top and
+    bottom (y only): the homogeneous deformation F = diag(1 + G t, 1) is the exact solution (P_xy = 0 on
+    every side, and d^2u/dt^2 = 0)."""
+    n = 4
+    msh = dmesh.create_unit_square(COMM, n, n)
+    x = msh.geometry.x
+    inner = (x[:, 0] > 1e-12) & (x[:, 0] < 1 - 1e-12) & (x[:, 1] > 1e-12) & (x[:, 1] < 1 - 1e-12)
+    x[inner, 0] += 0.3 / n * np.sin(37.0 * x[inner, 0] + 17.0 * x[inner, 1])
+    x[inner, 1] += 0.3 / n * np.cos(23.0 * x[inner, 0] + 41.0 * x[inner, 1])
+    side = lambda pred: (lambda m: dmesh.locate_entities_boundary(m, 1, pred))          # noqa: E731
+    parts = [DirichletPart("left", side(lambda x: np.isclose(x[0], 0.0)), lambda x, t: 0.0, components=(0,)),
+             DirichletPart("right", side(lambda x: np.isclose(x[0], 1.0)), lambda x, t: G * t,
+                           velocity=lambda x, t: G, components=(0,)),
+             DirichletPart("sides", side(lambda x: np.isclose(x[1], 0.0) | np.isclose(x[1], 1.0)),
+                           lambda x, t: 0.0, components=(1,))]
+    return body(msh, lambda x: np.zeros((2, x.shape[1])), lambda x: np.array([G * x[0], 0.0 * x[0]]), parts,
+                columns=())
+
+
+@pytest.mark.parametrize("material", ["svk", "neo-hookean"])
+def test_homogeneous_stretch_is_reproduced_to_round_off(material):
+    """The finite-strain patch test: 10 steps of 0.1 to a stretch of 1.5 on a distorted mesh. Every dof
+    holds u = (G t x, 0) to round-off, and the reaction on the stretched side is the closed-form stress
+    of the material at every step (the energy-momentum stress between the step's stretches)."""
+    r = simulate(stretched_block(), pair="P2/P1", material=material, dt=0.1, T=1.0)
+    d = r.discretisation
+    xdof = d.W.tabulate_dof_coordinates()[:len(r.U.array) // 2]
+    u = r.U.array.reshape(-1, 2)
+    assert np.max(np.abs(u[:, 0] - G * 1.0 * xdof[:, 0]), initial=0.0) < 1e-10
+    assert np.max(np.abs(u[:, 1]), initial=0.0) < 1e-10
+    t = r.timeseries["t"]
+    expected = [closed_form_reaction(material, 1 + G * t0, 1 + G * t1) for t0, t1 in zip(t[:-1], t[1:])]
+    assert np.allclose(r.timeseries["reaction_right_x"][1:], expected, rtol=1e-9, atol=0.0)
+    if material == "neo-hookean":       # not Hooke's law: at a stretch of 1.5 the stress is far from linear
+        assert abs(expected[-1] - (LAM + 2 * MU) * 0.5 * G) > 0.1 * expected[-1]
+
+
+# ------------------------------------------------------------------ a problem's own psi, refusals
+def test_problem_psi_runs_like_the_builtin_law():
+    """material problem with psi = Saint Venant-Kirchhoff written by hand (through the general discrete
+    gradient) gives svk's steps to the Newton tolerance."""
+    svk = simulate(spinning_square(), pair="P2/P1", material="svk", dt=DT, T=20 * DT).timeseries
+    own = simulate(spinning_square(svk_psi), pair="P2/P1", material="problem", dt=DT, T=20 * DT).timeseries
+    assert np.max(np.abs(own["energy"] - svk["energy"])) < 1e3 * RTOL * svk["energy"][0]
+    assert np.max(np.abs(own["u_probe"] - svk["u_probe"])) < 1e-8
+
+
+def test_refusals_are_one_line():
+    """What the hyperelastic step cannot run is refused before anything is built or written."""
+    wrong = lambda C: 2.0 * svk_psi(C)                                                  # noqa: E731
+    cases = [(dict(problem=spinning_square(wrong), material="problem"), DiscretisationError, "tangent at rest"),
+             (dict(problem=spinning_square(), material="problem"), DiscretisationError, "declares none"),
+             (dict(problem="membrane", material="svk"), DiscretisationError, "vector displacement"),
+             (dict(problem=spinning_square(), material="svk", scheme="newmark"), DiscretisationError, "newmark"),
+             (dict(problem=spinning_square(), newton="modified"), RunInputError, "newton"),
+             (dict(problem=spinning_square(), material="svk", linear="cg-gamg"), DiscretisationError, "cg-gamg"),
+             (dict(problem=spinning_square(), material="rubber"), RunInputError, "rubber")]
+    for kw, error, words in cases:
+        with pytest.raises(error) as e:
+            simulate(**{"pair": "P2/P1", "dt": DT, "T": DT, **kw})
+        assert words in str(e.value) and "\n" not in str(e.value), str(e.value)
