@@ -1,6 +1,7 @@
 """The discrete energy J^h (paper, Theorem 2) of a finished run, recomputed from ``state.h5``.
 
-The potential ½ a(u, u) − l(u) is assembled from the run's own UFL forms; the kinetic energy
+The potential ½ a(u, u) − l(u) is assembled from the run's own UFL forms (a hyperelastic run's
+∫ ψ(C(u)) dx − l(u), ψ its material's); the kinetic energy
 is ½ V̄ᵀ M V̄ with M = Bᵀ C⁻¹ B (or the standard mass) reassembled by a fresh
 :class:`~sdm_dolfinx.method.discretisation.Discretisation`, or ½ ∫ ρ v·v for a run that
 stored V in H^h (consistent block variant). Nothing of the running code's memory is used, so
@@ -15,7 +16,9 @@ import numpy as np
 import ufl
 from dolfinx import fem
 
-from sdm_dolfinx import compat
+from sdm_dolfinx import compat, materials
+from sdm_dolfinx.materials import algorithmic
+from sdm_dolfinx.method import finite_strain
 from sdm_dolfinx.method import quadrature
 from sdm_dolfinx.method.discretisation import Discretisation
 from sdm_dolfinx.mpiutil import atomic_write_text
@@ -51,7 +54,8 @@ def recompute_energy(folder, comm=MPI.COMM_WORLD, write=True):
     disc = Discretisation(problem, info["pair"], info.get("mass"), quadrature.of_run(info), constrain=constrain)
     Vs = disc.H if info.get("mass") == "consistent" else disc.W
     reader = StateReader(folder, disc.W, Vs, comm)
-    cols, roundoff = _energies(problem, disc, Vs, reader, comm)
+    material = (info.get("run_options") or {}).get("material") or "linear"
+    cols, roundoff = _energies(problem, disc, Vs, reader, comm, material)
     out = dict(cols, **_compare(cols, roundoff, read_timeseries(folder, comm)), stored_dtype=str(reader.dtype))
     if write and comm.rank == 0:
         atomic_write_text(Path(folder) / "energy_recomputed.csv", _csv_text(cols))
@@ -59,12 +63,17 @@ def recompute_energy(folder, comm=MPI.COMM_WORLD, write=True):
     return out
 
 
-def _energies(problem, disc, Vs, reader, comm):
+def _energies(problem, disc, Vs, reader, comm, material="linear"):
     """({column: array} of the stored states, round-off scale of each state's energy)."""
     u, v = fem.Function(disc.W), fem.Function(Vs)
     w = ufl.TestFunction(disc.W)
-    # potential: 1/2 a(u, u) - l(u), the run's own UFL forms with u the stored field
-    pot_form = disc.form(0.5 * problem.a(u, u) - ufl.action(problem.l(w), u))
+    # potential: 1/2 a(u, u) - l(u), the run's own UFL forms with u the stored field; a hyperelastic
+    # run's int psi(C(u)) dx - l(u), psi from the material's own declaration at the run's degree
+    if materials.is_linear(material):
+        pot_form = disc.form(0.5 * problem.a(u, u) - ufl.action(problem.l(w), u))
+    else:
+        psi = algorithmic.energy_density(materials.get(material), u, problem) * ufl.dx
+        pot_form = compat.form(psi - ufl.action(problem.l(w), u), quadrature_degree=finite_strain.degree(disc))
     rho = density.form(problem)
     kin_form = disc.form(0.5 * rho * ufl.inner(v, v) * ufl.dx) if Vs is not disc.W else None
     Mv = disc.M.createVecLeft() if kin_form is None else None

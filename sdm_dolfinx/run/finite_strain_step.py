@@ -32,6 +32,8 @@ from sdm_dolfinx.solvers import VIError, make_vi_solver
 RTOL = 1e-10
 #: Newton iterations before a step fails
 MAX_IT = 30
+#: halvings of a Newton step whose residual did not fall (backtracking)
+MAX_CUTS = 10
 #: the ways to take the tangent
 NEWTON = ("full", "modified")
 #: the linear strategies that can solve a nonsymmetric LCP with one factorisation per tangent
@@ -100,14 +102,22 @@ class FiniteStrainStep:
         braw.array[free] += integ.lift.array_r[free]        # b before the linear lifting b - K g
         X.array[~free] = b.array_r[~free]                   # the Dirichlet values of the iterate
         bscale = comm.allreduce(float(np.max(np.abs(braw.array_r[free]), initial=0.0)), op=MPI.MAX)
-        its = tangents = 0
-        rhs = b.duplicate()
+        its = tangents = cuts = 0
+        rhs, X_old = b.duplicate(), X.copy()
+        err = None
         for k in range(1, MAX_IT + 1):
-            self.residual(X, self.r)
-            res = self.r.array_r - braw.array_r
-            scale = max(bscale, comm.allreduce(float(np.max(np.abs(self.c_A * self.F.array_r), initial=0.0)),
-                                               op=MPI.MAX), 1e-300)
-            if k > 1 and self._error(res, scale) <= RTOL:
+            res, scale = self._residual(X, braw, bscale)
+            new = self._error(res, scale)
+            for _ in range(MAX_CUTS if err is not None else 0):     # backtracking: the error must fall
+                if new < (1.0 - 1e-4) * err or new <= RTOL:
+                    break
+                X.axpy(1.0, X_old)                  # X <- (X + X_old) / 2: feasible, the data kept
+                X.scale(0.5)
+                cuts += 1
+                res, scale = self._residual(X, braw, bscale)
+                new = self._error(res, scale)
+            err = new
+            if k > 1 and err <= RTOL:
                 break
             if self.lcp is None or self.newton == "full" or k == 1:
                 self._tangent(X)
@@ -115,6 +125,7 @@ class FiniteStrainStep:
             self.K.mult(X, rhs)
             rhs.array[free] -= res[free]
             rhs.array[~free] = X.array_r[~free]
+            X.copy(X_old)
             try:
                 its += self.lcp.solve(rhs, X)["its"]
             except VIError as e:
@@ -122,13 +133,23 @@ class FiniteStrainStep:
             self.active = self.lcp.active.copy()
         else:
             raise VIError(f"the finite-strain Newton did not converge in {MAX_IT} iterations (residual "
-                          f"{self._error(res, scale):.3g} of the step's scale, tolerance {RTOL:g}; newton "
-                          f"{self.newton}): a smaller time step, or newton full")
-        self.lam = np.where(self.active, res[c], 0.0)
+                          f"{err:.3g} of the step's scale, tolerance {RTOL:g}; newton {self.newton}): a smaller "
+                          f"time step" + (", or newton full" if self.newton == "modified" else ""))
         rhs.destroy()
+        X_old.destroy()
+        self.lam = np.where(self.active, res[c], 0.0)
         braw.destroy()
         n_active = comm.allreduce(int(np.count_nonzero(self.active)), op=MPI.SUM)
-        return {"its": its, "n_active": n_active, "nonlinear_its": k - 1, "tangents": tangents}
+        return {"its": its, "n_active": n_active, "nonlinear_its": k - 1, "tangents": tangents, "cuts": cuts}
+
+    def _residual(self, X, braw, bscale):
+        """(r(X) - b at every owned dof, the step's scale) (collective)."""
+        self.residual(X, self.r)
+        res = self.r.array_r - braw.array_r
+        comm = self.discretisation.comm
+        scale = max(bscale, comm.allreduce(float(np.max(np.abs(self.c_A * self.F.array_r), initial=0.0)),
+                                           op=MPI.MAX), 1e-300)
+        return res, scale
 
     def _error(self, res, scale):
         """max |residual| off the Dirichlet dofs, the active constraints' (nonnegative) multipliers
