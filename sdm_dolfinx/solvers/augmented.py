@@ -10,8 +10,9 @@ from petsc4py import PETSc
 import numpy as np
 
 
-def augmented_matrix(A, B, c_lumped, alpha, ddofs):
-    """[A, alpha B^T; alpha B, -D] with D = diag(c_lumped), Dirichlet dofs of A eliminated.
+def augmented_matrix(A, B, c_lumped, alpha, ddofs, symmetric=True):
+    """[A, alpha B^T; alpha B, -D] with D = diag(c_lumped), Dirichlet dofs of A eliminated (``symmetric``:
+    A is, and the matrix is flagged so; a finite-strain tangent is not).
 
     Its Schur complement on the first block is K = A + alpha^2 B^T D^-1 B = alpha^2 M + A,
     the step matrix of the M formulation, so ``K x = r`` is ``aug [x; y] = [r; 0]``. For
@@ -38,7 +39,7 @@ def augmented_matrix(A, B, c_lumped, alpha, ddofs):
     D.assemble()
     nest = PETSc.Mat().createNest([[A0, Bt], [B0, D]], comm=comm)
     aug = nest.convert("aij", PETSc.Mat())
-    aug.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+    aug.setOption(PETSc.Mat.Option.SYMMETRIC, bool(symmetric))
     for m in (nest, A0, B0, Bt, D, keep, d):
         m.destroy()
     return aug
@@ -50,12 +51,12 @@ def augmented_matrix(A, B, c_lumped, alpha, ddofs):
 AUG_MIN_ROWS = 20_000
 
 
-def sparse_factor_matrix(K, A, B, c_lumped, alpha, ddofs, ratio=0.6):
-    """:func:`augmented_matrix` when K has at least :data:`AUG_MIN_ROWS` rows and the
+def sparse_factor_matrix(K, A, B, c_lumped, alpha, ddofs, ratio=0.6, min_rows=None, symmetric=True):
+    """:func:`augmented_matrix` when K has at least ``min_rows`` (:data:`AUG_MIN_ROWS`) rows and the
     augmented matrix less than ``ratio`` times K's nonzeros, else None."""
-    if K.getSize()[0] < AUG_MIN_ROWS:
+    if K.getSize()[0] < (AUG_MIN_ROWS if min_rows is None else min_rows):
         return None
-    aug = augmented_matrix(A, B, c_lumped, alpha, ddofs)
+    aug = augmented_matrix(A, B, c_lumped, alpha, ddofs, symmetric)
     comm = K.getComm().tompi4py()
     local = PETSc.Mat.InfoType.LOCAL
     nz_aug = comm.allreduce(aug.getInfo(local)["nz_used"], op=MPI.SUM)

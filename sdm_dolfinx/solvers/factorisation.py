@@ -155,10 +155,12 @@ class Factorisation:
         else:
             comm = self.comm
         size1 = self.redundant or self.comm.size == 1
-        if aug is not None:
+        if aug is not None and spd:
             M.setOption(PETSc.Mat.Option.SYMMETRIC, True)
             # LDL^T of the symmetric (quasi-definite) indefinite matrix: not CHOLMOD's
             kind, package = "cholesky", factor_package(size1, False)
+        elif aug is not None:           # a nonsymmetric K (a finite-strain tangent): LU of its augmented matrix
+            kind, package = "lu", factor_package(size1, False)
         else:
             kind, package = ("cholesky" if spd else "lu"), factor_package(size1, spd)
         ksp = factorise(M, comm, prefix, kind, package, agree=self.comm)
@@ -239,7 +241,8 @@ class Factorisation:
         return out
 
     def destroy(self):
-        self.ksp.destroy()
+        self.F.destroy()            # the handle's reference: else the factor outlives the KSP (240 MB a
+        self.ksp.destroy()          # time for the ball's level-1 LU, a finite-strain run's every tangent)
         self.ra.destroy()
         self.xa.destroy()
         if self.redundant:
