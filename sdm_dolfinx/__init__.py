@@ -34,12 +34,15 @@ from sdm_dolfinx.schemes import Scheme  # noqa: E402
 from sdm_dolfinx.schemes import register as register_scheme  # noqa: E402
 from sdm_dolfinx.contact import register as register_contact  # noqa: E402
 from sdm_dolfinx.solvers import register as register_step_solver  # noqa: E402
+from sdm_dolfinx.materials import Material, MaterialError  # noqa: E402
+from sdm_dolfinx.materials import register as register_material  # noqa: E402
 from sdm_dolfinx.io import CheckpointError, RunFolderError  # noqa: E402
 from sdm_dolfinx.run import Interrupted, Result, RunInputError, SolverSetupError, plan, simulate  # noqa: E402
 
 __all__ = ["simulate", "plan", "Result", "Problem", "DirichletPart", "ContactPair", "Body", "ProblemSpec", "Param", "Pair", "Scheme",
-           "register_problem", "register_pair", "register_scheme", "register_contact", "register_step_solver",
-           "SdmError", "StepError", "RunInputError", "ProblemInputError", "OptionError", "DiscretisationError",
+           "Material", "register_problem", "register_pair", "register_scheme", "register_contact", "register_step_solver",
+           "register_material", "SdmError", "StepError", "RunInputError", "ProblemInputError", "OptionError",
+           "DiscretisationError", "MaterialError",
            "Interrupted", "SolverSetupError", "CheckpointError", "RunFolderError",
            "ball", "bar", "block", "disc", "membrane", "rod1d"]
 __version__ = "0.1.0"

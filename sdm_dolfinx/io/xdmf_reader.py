@@ -265,6 +265,7 @@ class Series:
         """(lambda, mu) from run.json's parameters ``lame_lambda`` and ``lame_mu``, or None when the
         problem does not declare both or the run's material is a problem file's own psi (its stress is
         then not known here)."""
+        from sdm_dolfinx.materials.cauchy import CAUCHY
         if self.material not in CAUCHY:
             return None
         p = self.parameters
@@ -350,11 +351,12 @@ def von_mises(series, displacement, lame_lambda, lame_mu, material="linear"):
     """The von Mises stress of a nodal displacement, one value per cell of
     :meth:`Series.linear_cells` (on which the displacement is linear, so the strain constant): of
     Hooke's sigma(eps) for the linear material, of the Cauchy stress F S F^T / J of a hyperelastic one
-    (:data:`CAUCHY`: its second Piola-Kirchhoff stress S(C), :mod:`sdm_dolfinx.materials`).
+    (:data:`sdm_dolfinx.materials.cauchy.CAUCHY`: its second Piola-Kirchhoff stress S(C)).
 
     2-D: plane strain (F_zz = 1), with the out-of-plane stress; 3-D: the full stress.
     """
     import numpy as np
+    from sdm_dolfinx.materials.cauchy import CAUCHY
     cells = series.linear_cells()
     d = cells.shape[1] - 1                         # 2 (triangles) or 3 (tetrahedra)
     x = series.points[:, :d][cells]                # (m, d + 1, d)
@@ -364,42 +366,6 @@ def von_mises(series, displacement, lame_lambda, lame_mu, material="linear"):
     grad = np.linalg.solve(edges, du).transpose(0, 2, 1)                 # grad[i, j] = du_i/dx_j
     full = np.zeros((len(cells), 3, 3))
     full[:, :d, :d] = grad
-    sigma = CAUCHY[material](full, lame_lambda, lame_mu)
+    sigma = CAUCHY[material](full, lame_lambda, lame_mu)       # (m, 3, 3)
     dev = sigma - np.trace(sigma, axis1=1, axis2=2)[:, None, None] / 3.0 * np.eye(3)
     return np.sqrt(1.5 * np.sum(dev * dev, axis=(1, 2)))
-
-
-def _hooke(grad, lam, mu):
-    """sigma = lam tr(eps) I + 2 mu eps of displacement gradients (m, 3, 3) (plane strain: grad's third
-    row and column 0)."""
-    import numpy as np
-    eps = 0.5 * (grad + grad.transpose(0, 2, 1))
-    return 2 * mu * eps + lam * np.trace(eps, axis1=1, axis2=2)[:, None, None] * np.eye(3)
-
-
-def _cauchy(pk2):
-    """The Cauchy stress F S F^T / J of the displacement gradients (m, 3, 3), S = ``pk2(C, lam, mu)``."""
-    import numpy as np
-
-    def sigma(grad, lam, mu):
-        F = np.eye(3) + grad
-        C = F.transpose(0, 2, 1) @ F
-        return F @ pk2(C, lam, mu) @ F.transpose(0, 2, 1) / np.linalg.det(F)[:, None, None]
-    return sigma
-
-
-def _svk(C, lam, mu):
-    import numpy as np
-    E = 0.5 * (C - np.eye(3))
-    return lam * np.trace(E, axis1=1, axis2=2)[:, None, None] * np.eye(3) + 2 * mu * E
-
-
-def _neo_hookean(C, lam, mu):
-    import numpy as np
-    Ci = np.linalg.inv(C)
-    return mu * (np.eye(3) - Ci) + lam * 0.5 * np.log(np.linalg.det(C))[:, None, None] * Ci
-
-
-#: the stress of each material a picture can show: linear (Hooke), svk, neo-hookean (Cauchy); a problem
-#: file's own psi (material ``problem``) is not known here: its pictures are coloured by |u|
-CAUCHY = {"linear": _hooke, "svk": _cauchy(_svk), "neo-hookean": _cauchy(_neo_hookean)}

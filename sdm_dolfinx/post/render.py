@@ -140,8 +140,7 @@ class Look:
             self.colour, what, unit = "u", "displacement u", _unit(series, *unit_of["u"])
         elif series.lame() is not None:
             self.colour, unit = "stress", _unit(series, *unit_of["stress"])
-            what = ("von Mises stress" + (" (Cauchy)" if series.material != "linear" else "")
-                    + (" (plane strain)" if kind == "solid" else ""))
+            what = f"von Mises stress{' (Cauchy)' * (series.material != 'linear')}{' (plane strain)' * (kind == 'solid')}"
         else:                                          # no Lamé parameters: the stress is not known here
             self.colour, what, unit = "|u|", "displacement |u|", _unit(series, *unit_of["u"])
         self.colour_title = what.replace(" (", "\n(") + "\n" + (f"({unit})" if unit else "(unit not in run.json)")

@@ -63,8 +63,10 @@ def finite_strain_refusal(integ, vi_solver, linear):
                 "step matrix: remove newton")
     where = f"material {m!r}"
     p = d.problem
-    not_yet = [(ts.finite_strain is None, f"scheme {integ.scheme!r} (use midpoint: energy-momentum, or backward-euler)"),
-               (integ.friction is not None, "friction"), (integ.contact != "exact", f"contact {integ.contact!r}"),
+    if ts.finite_strain is None:
+        return (f"{where} takes the midpoint scheme (energy-momentum) or backward-euler; scheme {integ.scheme!r} "
+                f"has no finite-strain step yet")
+    not_yet = [(integ.friction is not None, "friction"), (integ.contact != "exact", f"contact {integ.contact!r}"),
                (integ.block, "mass 'consistent' (the (U, V) block system)"),
                (vi_solver != "ssn", f"vi_solver {vi_solver!r}"),
                (linear not in ("auto", *STRATEGIES), f"linear {linear!r} (use {', '.join(STRATEGIES)})"),

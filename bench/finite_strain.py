@@ -1,0 +1,81 @@
+"""The cost of finite strain: a hyperelastic contact step against the linear one, full and modified Newton.
+
+For each problem and level, the same window of steps through the first impact is run with the linear
+material and with ``neo-hookean`` (``--newton full`` and ``modified``), one rank, ``--linear auto``
+(the linear runs factorise K once; a hyperelastic run factorises every tangent, through the augmented
+[c_A T, sqrt(c_M) B^T; sqrt(c_M) B, -D] where that is sparser). Recorded per run: the wall time of the
+steps (set-up apart), the time per step, per contact step (a step with an active constraint), the Newton
+iterations and tangents per step, and the ratio to the linear run's time per contact step.
+
+    python bench/finite_strain.py --problem disc --levels 1 2 3 4 5
+    python bench/finite_strain.py --problem ball --levels 1 2
+
+Windows: the disc (v0 = -1000 mm/s from 10 mm, gravity) 0.03 s at dt 5e-4 (60 steps, the impact at
+step ~18); the ball (v = 100 mm/s, 0.01 mm above the plane) 2 ms at dt 4e-5 (50 steps, contact from
+step 1). Results in ``results/finite_strain_<problem>.json`` and bench/README.md.
+"""
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from mpi4py import MPI
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent))
+
+from sdm_dolfinx import simulate  # noqa: E402
+
+WINDOWS = {"disc": dict(params={}, dt=5e-4, T=0.03), "ball": dict(params={}, dt=4e-5, T=2e-3)}
+RUNS = (("linear", "full"), ("neo-hookean", "full"), ("neo-hookean", "modified"))
+
+
+def one(problem, level, material, newton):
+    """The measured row of one run."""
+    w = WINDOWS[problem]
+    clock = []
+    t0 = time.perf_counter()
+    r = simulate(problem, {"level": level, **w["params"]}, material=material, newton=newton, dt=w["dt"], T=w["T"],
+                 on_step=lambda n, row: clock.append(time.perf_counter()))
+    ts = r.timeseries
+    steps = np.diff([r.info["setup_time"] + t0] + clock) if clock else np.zeros(0)
+    contact = ts["n_active"][1:] > 0
+    row = {"problem": problem, "level": level, "material": material, "newton": newton, "dofs": r.info["dim_W"],
+           "steps": int(len(steps)), "contact_steps": int(contact.sum()), "wall_steps_s": float(steps.sum()),
+           "s_per_step": float(steps.mean()), "s_per_contact_step": float(steps[contact].mean()) if contact.any() else None,
+           "setup_s": float(r.info["setup_time"])}
+    if "nonlinear_its" in ts:
+        row.update(newton_its_per_step=float(ts["nonlinear_its"][1:].mean()),
+                   newton_its_max=int(ts["nonlinear_its"].max()), tangents_per_step=float(ts["tangents"][1:].mean()))
+    return row
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--problem", choices=sorted(WINDOWS), default="disc")
+    ap.add_argument("--levels", type=int, nargs="+", default=[1, 2, 3])
+    ap.add_argument("--out", type=Path, default=HERE / "results")
+    a = ap.parse_args(argv)
+    rows = []
+    for level in a.levels:
+        base = None
+        for material, newton in RUNS:
+            row = one(a.problem, level, material, newton)
+            if material == "linear":
+                base = row["s_per_contact_step"]
+            elif base:
+                row["vs_linear_contact_step"] = row["s_per_contact_step"] / base
+            rows.append(row)
+            if MPI.COMM_WORLD.rank == 0:
+                print(json.dumps(row), flush=True)
+    if MPI.COMM_WORLD.rank == 0:
+        a.out.mkdir(parents=True, exist_ok=True)
+        (a.out / f"finite_strain_{a.problem}.json").write_text(json.dumps(
+            {"date": time.strftime("%Y-%m-%d"), "ranks": MPI.COMM_WORLD.size, "rows": rows}, indent=1))
+
+
+if __name__ == "__main__":
+    main()
