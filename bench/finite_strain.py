@@ -1,7 +1,7 @@
 """The cost of finite strain: a hyperelastic contact step against the linear one, full and modified Newton.
 
 For each problem and level, the same window of steps through the first impact is run with the linear
-material and with ``neo-hookean`` (``--newton full`` and ``modified``), one rank, ``--linear auto``
+material and with ``neo-hookean`` (``--newton full``, ``modified`` and ``initial``), one rank, ``--linear auto``
 (the linear runs factorise K once; a hyperelastic run factorises every tangent, through the augmented
 [c_A T, sqrt(c_M) B^T; sqrt(c_M) B, -D] where that is sparser). Recorded per run: the wall time of the
 steps (set-up apart), the time per step, per contact step (a step with an active constraint), the Newton
@@ -30,7 +30,7 @@ sys.path.insert(0, str(HERE.parent))
 from sdm_dolfinx import simulate  # noqa: E402
 
 WINDOWS = {"disc": dict(params={}, dt=5e-4, T=0.03), "ball": dict(params={}, dt=4e-5, T=2e-3)}
-RUNS = (("linear", "full"), ("neo-hookean", "full"), ("neo-hookean", "modified"))
+RUNS = (("linear", "full"), ("neo-hookean", "full"), ("neo-hookean", "modified"), ("neo-hookean", "initial"))
 
 
 def one(problem, level, material, newton):

@@ -14,7 +14,10 @@ from the previous active set); it converges quadratically near the solution. ``n
 new tangent at every iteration (one factorisation each); ``"modified"`` keeps the step's first one
 (one factorisation per step, linear convergence). The step ends when the residual, with the
 multipliers of the active constraints taken out, is below :data:`RTOL` of the step's scale
-(max |b|, max |c_A F_int|); it fails, naming the residual, after :data:`MAX_IT` iterations. A Newton step
+(max |b|, max |c_A F_int|); it fails, naming the residual, after :data:`MAX_IT` iterations.
+``"initial"`` keeps the linear run's step matrix c_M M + c_A A (the tangent at rest), factorised once for
+the run as in a linear run: the iterations converge linearly, at the rate of K_0^-1 (T - A), fast while
+the strains and rotations are moderate. A Newton step
 that more than doubles that error is halved (:data:`ACCEPT`, :data:`MAX_CUTS`; the iterates stay feasible,
 a convex combination of feasible points).
 
@@ -34,6 +37,8 @@ from sdm_dolfinx.solvers import VIError, make_vi_solver, sparse_factor_matrix
 RTOL = 1e-10
 #: Newton iterations before a step fails
 MAX_IT = 30
+#: iterations before a step fails with newton="initial" (linear convergence, at the rate of K_0^-1 (T - A))
+MAX_IT_INITIAL = 100
 #: halvings of a Newton step that multiplied the error by more than ACCEPT (a non-monotone backtracking)
 MAX_CUTS = 10
 #: measured on the disc after its impact (P2/P1, neo-Hookean): without halving, level 1 at dt 1e-3
@@ -41,7 +46,7 @@ MAX_CUTS = 10
 #: vertex's unbalanced force of the step's scale moved to its neighbour and back); with 2, both pass
 ACCEPT = 2.0
 #: the ways to take the tangent
-NEWTON = ("full", "modified")
+NEWTON = ("full", "modified", "initial")
 #: the linear strategies that can solve a nonsymmetric LCP with one factorisation per tangent
 STRATEGIES = ("schur", "lu", "cg-factor")
 
@@ -81,6 +86,15 @@ class FiniteStrainStep:
         self.forms.force(X, self.Un, self.F)
         out.array[:] = self.c_M * self.MX.array_r + self.c_A * self.F.array_r
         return out
+
+    def _initial(self):
+        """``newton="initial"``: the LCP solver of the linear run's step matrix c_M M + c_A A (T at rest),
+        factorised once for the run (collective; its K is the Integrator's)."""
+        integ, d = self.integ, self.discretisation
+        self.K = integ.K
+        self.lcp = make_vi_solver("ssn", integ.K, d.cdofs, self.lb, symmetric_positive=True, linear=self.linear,
+                                  options=self.options, factor_matrix=integ.factor_matrix, prefix=self.prefix)
+        self.lcp.active = self.active.copy()
 
     def _tangent(self, X):
         """A new LCP solver with K = c_M M + c_A T(X), the Dirichlet rows eliminated (collective)."""
@@ -126,7 +140,7 @@ class FiniteStrainStep:
         its = tangents = cuts = 0
         rhs, X_old = b.duplicate(), X.copy()
         err = None
-        for k in range(1, MAX_IT + 1):
+        for k in range(1, (MAX_IT_INITIAL if self.newton == "initial" else MAX_IT) + 1):
             res, scale = self._residual(X, braw, bscale)
             new = self._error(res, scale)
             for _ in range(MAX_CUTS if err is not None else 0):     # backtracking: the error must fall
@@ -140,7 +154,10 @@ class FiniteStrainStep:
             err = new
             if k > 1 and err <= RTOL:
                 break
-            if self.lcp is None or self.newton == "full" or k == 1:
+            if self.newton == "initial":
+                if self.lcp is None:
+                    self._initial()
+            elif self.lcp is None or self.newton == "full" or k == 1:
                 self._tangent(X)
                 tangents += 1
             self.K.mult(X, rhs)
@@ -153,9 +170,9 @@ class FiniteStrainStep:
                 raise VIError(f"Newton iteration {k} of the finite-strain step: {e}") from None
             self.active = self.lcp.active.copy()
         else:
-            raise VIError(f"the finite-strain Newton did not converge in {MAX_IT} iterations (residual "
+            raise VIError(f"the finite-strain Newton did not converge in {k} iterations (residual "
                           f"{err:.3g} of the step's scale, tolerance {RTOL:g}; newton {self.newton}): a smaller "
-                          f"time step" + (", or newton full" if self.newton == "modified" else ""))
+                          f"time step" + (", or newton full" if self.newton != "full" else ""))
         rhs.destroy()
         X_old.destroy()
         self.lam = np.where(self.active, res[c], 0.0)
@@ -187,7 +204,8 @@ class FiniteStrainStep:
     def destroy(self):
         if self.lcp is not None:
             self.lcp.destroy()
-            self.K.destroy()
+            if self.newton != "initial":        # else the Integrator's K
+                self.K.destroy()
         if self.aug is not None:
             self.aug.destroy()
         self.forms.destroy()

@@ -99,8 +99,9 @@ TABLE = (
                                     "midpoint scheme (docs/finite_strain.md)", type=str, choices=materials.names,
               noun="material", group=RUN, identity=True, problem_default=True),
     RunOption("newton", "full", "the tangent of a hyperelastic material's step: full (a new one at every Newton "
-                                "iteration, default) or modified (the step's first, one factorisation per step)",
-              type=str, choices=("full", "modified"), noun="newton", group=RUN, identity=True),
+                                "iteration, default), modified (the step's first: one factorisation per step) or "
+                                "initial (the linear step matrix, the tangent at rest: one factorisation per run)",
+              type=str, choices=("full", "modified", "initial"), noun="newton", group=RUN, identity=True),
     RunOption("friction", None, "friction at the constrained vertices (default none): coulomb = |lam_T| <= mu lam_N; "
                                 "tresca = |lam_T| <= threshold x the vertex's boundary measure at every constrained "
                                 "vertex, in contact or not (for a body in lasting contact)", type=str,
@@ -316,8 +317,8 @@ def _rules(o: Mapping[str, Any], label: Mapping[str, str]) -> list[str]:
     if o.get("friction") in _friction.LAWS:
         errors += _friction.check_solver(o.get("friction"), o.get("vi_solver"), o.get("linear"))
     errors += solver_rules.treatment_solver(o, label) or solver_rules.snes_linear(o, label)
-    if o.get("newton") == "modified" and materials.is_linear(o.get("material")):       # it would be ignored
-        errors.append(f"{label['newton']} modified is the tangent of a hyperelastic material's step; "
+    if o.get("newton") in ("modified", "initial") and materials.is_linear(o.get("material")):    # ignored
+        errors.append(f"{label['newton']} {o['newton']} is the tangent of a hyperelastic material's step; "
                       f"{label['material']} linear has a constant step matrix: remove {label['newton']}")
     missing = missing_package(o.get("linear"))
     if missing and o.get("vi_solver") in (None, "ssn"):

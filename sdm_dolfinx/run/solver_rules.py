@@ -59,8 +59,8 @@ def finite_strain_refusal(integ, vi_solver, linear):
         return f"unknown newton {integ.newton!r}; choose one of {', '.join(NEWTON)}"
     if m is None:
         return (None if integ.newton == "full" else
-                "newton 'modified' is the tangent of a hyperelastic material's step; material linear has a constant "
-                "step matrix: remove newton")
+                f"newton {integ.newton!r} is the tangent of a hyperelastic material's step; material linear has a "
+                f"constant step matrix: remove newton")
     where = f"material {m!r}"
     p = d.problem
     if ts.finite_strain is None:
