@@ -37,6 +37,7 @@ DEMOS = {
     "indent.py": ["indent_hertz.png", "indent_force.png"],
     "bowl.py": ["bowl.png"],
     "two_balls.py": ["two_balls_hertz.png"],
+    "rubber_ball.py": ["rubber_ball.png"],
 }
 #: the files of demos/ that are not demos, and who runs them
 NOT_DEMOS = {
