@@ -63,10 +63,14 @@ def main(argv=None):
     for level in a.levels:
         base = None
         for material, newton in RUNS:
-            row = one(a.problem, level, material, newton)
+            try:
+                row = one(a.problem, level, material, newton)
+            except Exception as e:                 # a failed run is recorded, not the end of the study
+                row = {"problem": a.problem, "level": level, "material": material, "newton": newton,
+                       "failed": str(e).splitlines()[0][:200]}
             if material == "linear":
-                base = row["s_per_contact_step"]
-            elif base:
+                base = row.get("s_per_contact_step")
+            elif base and "failed" not in row:
                 row["vs_linear_contact_step"] = row["s_per_contact_step"] / base
             rows.append(row)
             if MPI.COMM_WORLD.rank == 0:
