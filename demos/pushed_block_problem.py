@@ -70,6 +70,12 @@ def build(comm, width, height, nx, ny, E, nu, rho, depth, ramp):
     eps = lambda u: ufl.sym(ufl.grad(u))                                        # noqa: E731
     sigma = lambda u: lmbda * ufl.tr(eps(u)) * ufl.Identity(2) + 2 * mu * eps(u)  # noqa: E731
     zero = fem.Constant(msh, np.zeros(2, dtype=PETSc.ScalarType))              # no body force
+
+    def strain_energy(C):
+        """A hyperelastic psi(C) of this block (``--material problem``): compressible neo-Hookean, plane
+        strain (C_33 = 1), written by hand; it linearises to a(u, w) below (the run checks it)."""
+        lnJ = 0.5 * ufl.ln(ufl.det(C))
+        return 0.5 * mu * (ufl.tr(C) - 2) - mu * lnJ + 0.5 * lmbda * lnJ ** 2
     punch = DirichletPart(
         "top", lambda m: dmesh.locate_entities_boundary(m, fdim, top),
         value=lambda x, t: -push(t, depth, ramp),                               # u_y = -d(t) on the top face
@@ -83,7 +89,7 @@ def build(comm, width, height, nx, ny, E, nu, rho, depth, ramp):
         constraint_vertices=lambda m: dmesh.locate_entities_boundary(m, 0, bottom),
         lower_bound=lambda x: -x[1], constraint_component=1,
         constraint_measure=lambda q: q * ds_c,
-        dirichlet_parts=[punch],
+        dirichlet_parts=[punch], strain_energy=strain_energy,
         probe=(width / 2, 0.0), extra_columns=("contact_force",),
         parameters={"lame_lambda": lmbda, "lame_mu": mu, "force": force(E, nu, width, height, depth)},
         units={"t": "s", "force": "N per mm of thickness", "contact_force": "N per mm of thickness",

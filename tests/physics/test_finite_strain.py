@@ -257,6 +257,23 @@ def test_initial_tangent_reaches_the_same_steps():
     assert np.max(np.abs(runs["initial"]["contact_force"] - runs["full"]["contact_force"])) < 1e-8 * F
 
 
+def test_a_problem_files_psi_from_the_command_line(mpi_tmp_path):
+    """The pushed block's file writes a neo-Hookean psi(C) by hand: ``run --problem-file ... --material problem``
+    gives the built-in neo-Hookean's forces (to 1e-9), through the command line."""
+    import json
+    from sdm_dolfinx import cli
+    out = mpi_tmp_path / "own"
+    assert cli.main(["run", "--problem-file", str(PUSHED), "--nu", str(NU_B), "--depth", "1.0", "--material",
+                     "problem", "--T", "0.006", "--out", str(out), "--quiet"]) == 0
+    builtin = simulate(str(PUSHED), {"nu": NU_B, "depth": 1.0}, material="neo-hookean", T=0.006).timeseries
+    if COMM.rank == 0:
+        own = np.loadtxt(out / "timeseries.csv", delimiter=",", skiprows=1)
+        header = (out / "timeseries.csv").read_text().splitlines()[0].split(",")
+        force = own[:, header.index("contact_force")]
+        assert np.max(np.abs(force - builtin["contact_force"])) < 1e-9 * block_force("neo-hookean", 1.0)
+        assert json.loads((out / "run.json").read_text())["material"] == "problem"
+
+
 def test_small_strain_limit_is_the_linear_model():
     """The same push at strains of 1e-3 and 1e-2: each material's force departs from the linear run's by
     O(strain) (fitted slope 1 within 0.05; measured -1.5 and +0.85 times the strain)."""
