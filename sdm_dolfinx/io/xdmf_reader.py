@@ -265,8 +265,7 @@ class Series:
         """(lambda, mu) from run.json's parameters ``lame_lambda`` and ``lame_mu``, or None when the
         problem does not declare both or the run's material is a problem file's own psi (its stress is
         then not known here)."""
-        from sdm_dolfinx.materials.cauchy import CAUCHY
-        if self.material not in CAUCHY:
+        if self.material not in cauchy_table():
             return None
         p = self.parameters
         try:
@@ -347,6 +346,24 @@ def _read_xdmf(path):
                   gdim=x.shape[1])
 
 
+def cauchy_table():
+    """:data:`sdm_dolfinx.materials.cauchy.CAUCHY`, its file loaded by path: this module runs in pvpython and in
+    the pictures' child process without the package, whose import starts MPI (a child of an MPI run then
+    hangs: the test suite's render children did, until memory ran out)."""
+    global _CAUCHY
+    if _CAUCHY is None:
+        import importlib.util
+        path = Path(__file__).resolve().parent.parent / "materials" / "cauchy.py"
+        spec = importlib.util.spec_from_file_location("sdm_render_cauchy", path)
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        _CAUCHY = module.CAUCHY
+    return _CAUCHY
+
+
+_CAUCHY = None
+
+
 def von_mises(series, displacement, lame_lambda, lame_mu, material="linear"):
     """The von Mises stress of a nodal displacement, one value per cell of
     :meth:`Series.linear_cells` (on which the displacement is linear, so the strain constant): of
@@ -356,7 +373,7 @@ def von_mises(series, displacement, lame_lambda, lame_mu, material="linear"):
     2-D: plane strain (F_zz = 1), with the out-of-plane stress; 3-D: the full stress.
     """
     import numpy as np
-    from sdm_dolfinx.materials.cauchy import CAUCHY
+    CAUCHY = cauchy_table()
     cells = series.linear_cells()
     d = cells.shape[1] - 1                         # 2 (triangles) or 3 (tetrahedra)
     x = series.points[:, :d][cells]                # (m, d + 1, d)
