@@ -217,6 +217,13 @@ def step_info(integ, info, u, un):
 def make_solver(integ, options):
     """The frictional step solver of the Integrator ``integ`` (2-D: :class:`FrictionalNewton`, 3-D: m x 2
     tangential dofs, :class:`FrictionalNewtonCone`); sets ``integ.tdofs``, ``slip`` and ``slip_t``."""
+    return solver_factory(integ, options)(integ.K, not integ.block, integ.factor_matrix, None)
+
+
+def solver_factory(integ, options):
+    """``factory(K, symmetric_positive, factor_matrix, prefix)``: the frictional step solver of the
+    Integrator ``integ`` with the step matrix K (a hyperelastic run makes one per tangent); sets
+    ``integ.tdofs``, ``slip`` and ``slip_t``."""
     d, f = integ.discretisation, integ.friction
     try:
         integ.tdofs, thresholds = contact_dofs(d, f)
@@ -236,10 +243,14 @@ def make_solver(integ, options):
     if bodies is not None:          # between bodies: the rows along the master's normal and tangents, every step
         integ.row_options = {"tangential": True}
     cls = FrictionalNewtonCone if integ.tdofs.ndim == 2 else FrictionalNewton
-    solver = cls(integ.K, ndofs, integ.tdofs, lb, law=f.law, mu=f.mu, threshold=thresholds,
-                 symmetric_positive=not integ.block, options=options, factor_matrix=integ.factor_matrix,
-                 frames=rows is not None, rows=weighted, surface=None if bodies is None else bodies.read)
     integ.slip = np.zeros(len(integ.tdofs))
     cartesian = (rows is not None and rows.gdim == 3) or (bodies is not None and bodies.gdim == 3)
     integ.slip_t = np.zeros((len(integ.tdofs), 3) if cartesian else integ.tdofs.shape)
-    return solver
+    tdofs = integ.tdofs
+
+    def factory(K, symmetric_positive, factor_matrix, prefix):
+        return cls(K, ndofs, tdofs, lb, law=f.law, mu=f.mu, threshold=thresholds,
+                   symmetric_positive=symmetric_positive, options=options, factor_matrix=factor_matrix,
+                   frames=rows is not None, rows=weighted, surface=None if bodies is None else bodies.read,
+                   prefix=prefix)
+    return factory

@@ -124,7 +124,8 @@ def warn_if_above(integ, mu):
 
 def step_hint(integ):
     """A failed step's hint: for Coulomb friction the Coulomb bound of the step problem, measured now,
-    and the command that measures it before a run (:func:`failure_hint`); else ''."""
-    if integ.friction is None or integ.friction.law != "coulomb":
+    and the command that measures it before a run (:func:`failure_hint`); else '' (also for a hyperelastic
+    run: the bound is the linear step matrix's, and its tangents change from iteration to iteration)."""
+    if integ.friction is None or integ.friction.law != "coulomb" or getattr(integ, "finite_strain", None):
         return ""
     return failure_hint(integ, integ.friction.mu, command_for(integ))

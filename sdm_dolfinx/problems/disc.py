@@ -56,6 +56,7 @@ UNITS = {"level": "-", "h": "mm (gmsh mesh size)",
          "gravity_angle": "degrees (theta: gravity g (sin theta, -cos theta), at theta to -e_y; the foundation "
                           "inclined at theta, seen in its frame)",
          "v0": "mm/s (vertical, whole disc; < 0 downward)", "vx0": "mm/s (horizontal, whole disc)",
+         "spin": "rad/s (counter-clockwise, about the centre)",
          "start": "- (unstressed: u0 = 0; equilibrium: resting on the foundation under (0, -g cos theta))",
          "mass": "t per mm of thickness (rho pi R^2)",
          "probe": "mm (point A, the lowest boundary vertex: u_probe and lambda_probe are recorded there)",
@@ -133,7 +134,7 @@ def _initial_displacement(start, msh, a, load_y, rho, contact_vertices, pins, ra
 
 
 def _build(comm, level, h, mesh_file, radius, height, rho, lame_lambda, lame_mu, gravity, gravity_angle, v0, vx0,
-           contact_zone, with_contact, start="unstressed"):
+           contact_zone, with_contact, start="unstressed", spin=0.0):
     """The disc Problem for declared values (see :data:`SPEC`).
 
     ``start = "equilibrium"`` (height 0, v0 0: :func:`_check`): U^0 = U_s, the resting solution
@@ -190,7 +191,8 @@ def _build(comm, level, h, mesh_file, radius, height, rho, lame_lambda, lame_mu,
         a=a, stress=lambda u: sigma(u, lame_lambda, lame_mu),
         l=lambda w: rho * ufl.inner(g, w) * ufl.dx,
         u0=u0,
-        v0=lambda x: np.vstack([np.full(x.shape[1], vx0), np.full(x.shape[1], v0)]),
+        # (vx0, v0) + spin e_z x (x - centre): a rigid motion
+        v0=lambda x: np.vstack([vx0 - spin * (x[1] - cy), v0 + spin * x[0]]),
         constraint_vertices=contact_vertices,
         # foundation y = 0: a vertex at height y must keep y + u_y >= 0
         lower_bound=lambda x: -x[1],
@@ -205,7 +207,7 @@ def _build(comm, level, h, mesh_file, radius, height, rho, lame_lambda, lame_mu,
                     "radius": radius,
                     "height": height, "centre": [0.0, cy], "rho": rho, "lame_lambda": lame_lambda,
                     "lame_mu": lame_mu, "gravity": gravity, "gravity_angle": gravity_angle, "v0": v0, "vx0": vx0,
-                    "contact_zone": contact_zone, "start": start,
+                    "spin": spin, "contact_zone": contact_zone, "start": start,
                     "contact_nodes": "vertices", "with_contact": with_contact, "plane": "strain",
                     "gmsh_algorithm": ALGORITHM, "geometry_degree": 2,
                     "mass": rho * np.pi * radius ** 2, "probe": probe_text},
@@ -274,6 +276,8 @@ PARAMS = (
           metavar="THETA"),
     Param("v0", -1000.0, "initial vertical velocity of the disc, negative downward", unit="mm/s"),
     Param("vx0", 0.0, "initial horizontal velocity of the disc (an oblique impact: (vx0, v0))", unit="mm/s"),
+    Param("spin", 0.0, "initial angular velocity about the centre, counter-clockwise (rolling to +x without "
+          "slipping: -vx0 / radius)", unit="rad/s"),
     Param("contact_zone", "lower", "boundary vertices that may touch: the lower half circle or all", type=str,
           choices=CONTACT_ZONES),
     Param("with_contact", True, "remove the foundation (free flight)", flag="no-contact"),
@@ -317,5 +321,5 @@ SPEC = ProblemSpec(
 def problem(comm: MPI.Comm = MPI.COMM_WORLD, **values: Any) -> Problem:
     """The paper's falling disc; ``values`` are :data:`PARAMS` (``level``, ``h``, ``mesh_file``,
     ``radius``, ``height``, ``rho``, ``lame_lambda``, ``lame_mu``, ``gravity``, ``gravity_angle``,
-    ``v0``, ``vx0``, ``contact_zone``, ``with_contact``, ``start``), the others at their defaults."""
+    ``v0``, ``vx0``, ``spin``, ``contact_zone``, ``with_contact``, ``start``), the others at their defaults."""
     return SPEC.problem(comm, **values)

@@ -70,6 +70,8 @@ class FiniteStrainStep:
         self.forms = FiniteStrain(d, material, ts.finite_strain)
         self.c_M, self.c_A = integ.coefficients
         self.lb = ts.solver_bounds(integ)
+        #: the dofs whose residual is a contact reaction (the normal ones; with friction also the tangential)
+        self.cdofs = d.cdofs
         self.Un, self.F, self.r, self.MX = (d.A.createVecRight() for _ in range(4))
         self.free = np.ones(self.Un.getLocalSize(), dtype=bool)
         self.free[d.ddofs] = False
@@ -100,9 +102,7 @@ class FiniteStrainStep:
         factorised once for the run (collective; its K is the Integrator's)."""
         integ, d = self.integ, self.discretisation
         if self.lcp0 is None:
-            self.lcp0 = make_vi_solver("ssn", integ.K, d.cdofs, self.lb, symmetric_positive=True,
-                                       linear=self.linear, options=self.options, factor_matrix=integ.factor_matrix,
-                                       prefix=self.prefix + "0_")
+            self.lcp0 = self._make(integ.K, True, integ.factor_matrix, self.prefix + "0_")
         return self.lcp0, integ.K
 
     def _tangent(self, X):
@@ -121,10 +121,21 @@ class FiniteStrainStep:
                 self.aug.destroy()
         self.aug = self._augmented(K, T) if self.linear != "lu" else None
         T.destroy()
-        self.lcp = make_vi_solver("ssn", K, d.cdofs, self.lb, symmetric_positive=False, linear=self.linear,
-                                  options=self.options, factor_matrix=self.aug, prefix=self.prefix)
+        self.lcp = self._make(K, False, self.aug, self.prefix)
         self.K = K
         return self.lcp, K
+
+    def _make(self, K, spd, factor_matrix, prefix):
+        """The solver of the LCPs with the step matrix K (``spd``: K at rest, else a tangent)."""
+        return make_vi_solver("ssn", K, self.discretisation.cdofs, self.lb, symmetric_positive=spd,
+                              linear=self.linear, options=self.options, factor_matrix=factor_matrix, prefix=prefix)
+
+    def _solve_linear(self, lcp, rhs, X):
+        """One Newton iteration's LCP  K X = rhs + lam  from the last active set; returns its iterations."""
+        lcp.active = self.active.copy()
+        its = lcp.solve(rhs, X)["its"]
+        self.active = lcp.active.copy()
+        return its
 
     def _augmented(self, K, T):
         """The sparser [c_A T, sqrt(c_M) B^T; sqrt(c_M) B, -D] to factorise instead of K (P2/P1: M is dense;
@@ -141,7 +152,7 @@ class FiniteStrainStep:
         X holds the initial guess and the result. Returns the info of the step (``its``: the semi-smooth
         Newton's iterations in all, ``nonlinear_its``, ``tangents``, ``n_active``)."""
         d, comm, integ = self.discretisation, self.discretisation.comm, self.integ
-        free, c = self.free, d.cdofs
+        free = self.free
         braw = b.copy()
         braw.array[free] += integ.lift.array_r[free]        # b before the linear lifting b - K g
         X.array[~free] = b.array_r[~free]                   # the Dirichlet values of the iterate
@@ -172,8 +183,7 @@ class FiniteStrainStep:
             self._rhs(K, X, res, rhs)
             X.copy(X_old)
             try:
-                lcp.active = self.active.copy()
-                its += lcp.solve(rhs, X)["its"]
+                its += self._solve_linear(lcp, rhs, X)
             except VIError as e:
                 if lcp is self.lcp0:
                     raise VIError(f"Newton iteration {k} of the finite-strain step: {e}") from None
@@ -184,22 +194,25 @@ class FiniteStrainStep:
                 self._rhs(K, X, res, rhs)
                 fallbacks += 1
                 try:
-                    lcp.active = self.active.copy()
-                    its += lcp.solve(rhs, X)["its"]
+                    its += self._solve_linear(lcp, rhs, X)
                 except VIError as e2:
                     raise VIError(f"Newton iteration {k} of the finite-strain step: {e} (and at rest: {e2})") from None
-            self.active = lcp.active.copy()
         else:
             raise VIError(f"the finite-strain Newton did not converge in {k} iterations (residual "
                           f"{err:.3g} of the step's scale, tolerance {RTOL:g}; newton {self.newton}): a smaller "
                           f"time step" + (", or newton full" if self.newton != "full" else ""))
         rhs.destroy()
         X_old.destroy()
-        self.lam = np.where(self.active, res[c], 0.0)
         braw.destroy()
-        n_active = comm.allreduce(int(np.count_nonzero(self.active)), op=MPI.SUM)
-        return {"its": its, "n_active": n_active, "nonlinear_its": k - 1, "tangents": tangents, "cuts": cuts,
+        return {"its": its, **self._converged(res), "nonlinear_its": k - 1, "tangents": tangents, "cuts": cuts,
                 "fallbacks": fallbacks}
+
+    def _converged(self, res):
+        """The multipliers of the converged step (the residual r(X) - b ``res`` at the active constraints)
+        and its counts for the step's info."""
+        c = self.discretisation.cdofs
+        self.lam = np.where(self.active, res[c], 0.0)
+        return {"n_active": self.discretisation.comm.allreduce(int(np.count_nonzero(self.active)), op=MPI.SUM)}
 
     def _rhs(self, K, X, res, rhs):
         """rhs <- K X - r(X) off the Dirichlet dofs, X there: the LCP K X' = rhs + lam of the Newton

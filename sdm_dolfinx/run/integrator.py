@@ -34,8 +34,9 @@ from sdm_dolfinx.contact import friction as _friction, friction_bound as _fricti
 from sdm_dolfinx.contact.context import StepContext
 from sdm_dolfinx.run import prescribed as _prescribed, solver_rules
 from sdm_dolfinx.run.finite_strain_step import FiniteStrainStep
+from sdm_dolfinx.run.finite_strain_friction import FrictionalFiniteStrainStep
 from sdm_dolfinx.run.measures import Measures
-from sdm_dolfinx import schemes
+from sdm_dolfinx import materials, schemes
 from sdm_dolfinx.errors import StepError
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.solvers import VIError, choose_strategy, make_vi_solver, sparse_factor_matrix
@@ -68,8 +69,9 @@ class Integrator(Measures):
         material: ``"linear"`` (the Problem's a(u, w), default) or a hyperelastic material of
             :mod:`sdm_dolfinx.materials` (``"svk"``, ``"neo-hookean"``, ``"problem"``): the step is then
             Newton's method on a nonlinear VI (:mod:`.finite_strain_step`).
-        newton: a hyperelastic run's tangent: ``"full"`` (every Newton iteration) or ``"modified"`` (once
-            per step).
+        newton: a hyperelastic run's tangent: ``"full"`` (every Newton iteration), ``"modified"`` (once
+            per step) or ``"initial"`` (the step matrix at rest, factorised once for the run; a new tangent
+            after a slow iteration).
 
     Raises:
         DiscretisationError: a combination the scheme or the treatment refuses (one line).
@@ -92,7 +94,7 @@ class Integrator(Measures):
         self.friction = friction if friction is not None and friction.on else None
         self.treatment, self.state = None, None
         #: the material of a hyperelastic run (:mod:`sdm_dolfinx.materials`), or None (linear)
-        self.finite_strain = None if material in (None, "linear") else material
+        self.finite_strain = None if materials.is_linear(material) else material
         self.newton = newton
         #: the Problem's Dirichlet parts (:class:`~.prescribed.Prescribed`: data lifted at every step,
         #: reactions and their work reported), or None
@@ -105,6 +107,7 @@ class Integrator(Measures):
                                           solver_rules.finite_strain_refusal(self, vi_solver, linear)) if r]
         if refused:
             raise DiscretisationError(refused[0])
+        solver_rules.warn_unused_strain_energy(self)
         ts.setup(self)
         linear = self._resolve(linear)
         self._build(linear)
@@ -169,6 +172,10 @@ class Integrator(Measures):
             self.solver = make_vi_solver(vi_solver, self.K, d.cdofs, self.time_scheme.solver_bounds(self),
                                          symmetric_positive=not self.block, linear=linear, options=options,
                                          factor_matrix=self.factor_matrix)
+        elif self.finite_strain:            # a new frictional solver per tangent
+            self.solver = FrictionalFiniteStrainStep(self, self.finite_strain, self.newton, linear, options,
+                                                     _friction.solver_factory(self, options))
+            self.apply_step = self.solver.residual
         else:
             self.solver = _friction.make_solver(self, options)
             if self.friction.law == "coulomb":          # up front: a mu the measured bound does not cover

@@ -2,8 +2,13 @@
 others): a choice that the solver actually used would ignore is refused, never recorded and dropped."""
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping
 from typing import Any
+
+
+class UnusedStrainEnergyWarning(UserWarning):
+    """A problem declares ``strain_energy`` and the run's material is another: the ψ is not used."""
 
 
 def treatment_solver(o: Mapping[str, Any], label: Mapping[str, str]) -> list[str]:
@@ -66,7 +71,7 @@ def finite_strain_refusal(integ, vi_solver, linear):
     if ts.finite_strain is None:
         return (f"{where} takes the midpoint scheme (energy-momentum) or backward-euler; scheme {integ.scheme!r} "
                 f"has no finite-strain step yet")
-    not_yet = [(integ.friction is not None, "friction"), (integ.contact != "exact", f"contact {integ.contact!r}"),
+    not_yet = [(integ.contact != "exact", f"contact {integ.contact!r}"),
                (integ.block, "mass 'consistent' (the (U, V) block system)"),
                (vi_solver != "ssn", f"vi_solver {vi_solver!r}"),
                (linear not in ("auto", *STRATEGIES), f"linear {linear!r} (use {', '.join(STRATEGIES)})"),
@@ -78,3 +83,15 @@ def finite_strain_refusal(integ, vi_solver, linear):
         if refused:
             return f"{where} does not take {what} yet: use material linear for it"
     return None
+
+
+def warn_unused_strain_energy(integ):
+    """Warn in one line (rank 0) when the problem declares ``strain_energy`` and the run's material is not
+    ``problem``: that ψ does not enter the run (the material's law, or the linear model, does)."""
+    d = integ.discretisation
+    material = integ.finite_strain or "linear"
+    if getattr(d.problem, "strain_energy", None) is None or material == "problem" or d.comm.rank != 0:
+        return
+    # warn_explicit with no source file: one line ("sdm_dolfinx:0: UnusedStrainEnergyWarning: ...")
+    warnings.warn_explicit(f"problem {d.problem.name!r} declares strain_energy, which material {material!r} does not "
+                           f"use: material 'problem' runs it", UnusedStrainEnergyWarning, "sdm_dolfinx", 0)

@@ -43,7 +43,7 @@ BAD = [
     (["disc"], 'material = "neo-hookean"\nnewton = "quasi"\n', "key 'newton'"),
     (["membrane", "--material", "svk"], None, "vector displacement"),
     (["disc", "--material", "svk", "--scheme", "newmark"], None, "no finite-strain step"),
-    (["disc", "--material", "svk", "--friction", "coulomb", "--mu", "0.3"], None, "friction yet"),
+    (["disc", "--material", "svk", "--constrain", "weighted"], None, "constrain 'weighted' (gap rows) yet"),
     (["membrane", "--write-every", "0"], None, "--write-every"),
     (["membrane", "--checkpoint-every", "-3"], None, "--checkpoint-every"),
     (["membrane", "--probe", "2", "0.5"], None, "--probe"),
