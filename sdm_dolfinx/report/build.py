@@ -14,6 +14,7 @@ from sdm_dolfinx.paper import disc_figures, membrane_figures as figures, numbers
 from sdm_dolfinx.paper.design import BE_PAIRS, MEMBRANE_PAIRS
 from sdm_dolfinx.report import comparison_entry as compare_report, hertz_entry as hertz_report
 from sdm_dolfinx.report import two_balls_entry as two_balls_report
+from sdm_dolfinx.report import finite_strain_entry as finite_strain_report
 from sdm_dolfinx.report import rod_contact_entry as rod_report
 from sdm_dolfinx.report import table2_entry as table2_report
 from sdm_dolfinx.study.runs import duration, read_run_info
@@ -91,6 +92,7 @@ def make_report(study, runs_dir, out, records, comm=COMM, say=print, meta=None):
     rod = rod_report.entry(study, runs_dir, out, comm, say)                # collective runs
     ball = hertz_report.entries(study, runs_dir, out, comm, say)           # collective runs
     balls = two_balls_report.entry(study, runs_dir, out, comm, say)        # collective runs
+    hyperelastic = finite_strain_report.entries(study, runs_dir, out, comm, say)     # collective runs
     if comm.rank == 0:
         entries.append(pictures.picture_membrane(paper, runs_dir, out))
         for pair in MEMBRANE_PAIRS:
@@ -114,6 +116,7 @@ def make_report(study, runs_dir, out, records, comm=COMM, say=print, meta=None):
         entries.append(rod)
         entries += ball
         entries.append(balls)
+        entries += hyperelastic
         meta = dict(meta or {}, runs_dir=runs_dir)
         meta["runs_total"] = sum((read_run_info(runs_dir / r.name) or {}).get("wall_time") or 0.0
                                  for r in study.runs())
@@ -173,8 +176,9 @@ def _head(study, meta):
     if study.quick:
         parts.append("<p><b>Quick mode:</b> the membrane runs stop at T = 0.5 (the paper: 0.8), dt = 1e-4 is "
                      "skipped, Figs. 9-11 use fewer and coarser meshes, and the disc convergence study stops at "
-                     "level 3, the friction runs use disc level 1 only, the ball and the two balls against Hertz level 1 only; "
-                     "verdicts refer to these runs.</p>")
+                     "level 3, the friction runs use disc level 1 only, the ball and the two balls against Hertz level 1 only, "
+                     "the finite-strain section one revolution of the spin, one time step of the rolling disc and "
+                     "two speeds of the ball at level 1; verdicts refer to these runs.</p>")
     return parts
 
 

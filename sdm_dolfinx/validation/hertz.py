@@ -165,16 +165,18 @@ def ring_pressure(peak, width):
 
 
 def run_one(level, dt, pair="P2/P1", linear="auto", comm=MPI.COMM_WORLD, out=None, write_every=None,
-            **problem_args):
+            material=None, newton=None, **problem_args):
     """One ball run at ``level`` and ``dt``: its :func:`metrics`, force and energy histories and peak
-    pressures (``out``, ``write_every``: the run's folder and XDMF interval, as for ``simulate``)."""
+    pressures (``out``, ``write_every``, ``material``, ``newton``: the run's folder, XDMF interval,
+    material and tangent, as for ``simulate``)."""
     t0 = time.perf_counter()
     problem = ball.problem(comm, level=level, **problem_args)
     ref = ball.hertz_of(problem)
     prm = problem.parameters
     T = num_steps(prm["height"] / prm["v"] + T_FACTOR * ref["t_c"], dt) * dt     # whole steps
     peak = PressureAtPeak()
-    r = simulate(problem, pair=pair, dt=dt, T=T, linear=linear, observe=peak, out=out, write_every=write_every)
+    r = simulate(problem, pair=pair, dt=dt, T=T, linear=linear, observe=peak, out=out, write_every=write_every,
+                 material=material, newton=newton)
     ts = r.timeseries
     mass = ball.total_mass(problem)
     row = {"level": level, "dt": dt, "pair": pair, "h": prm["h"], "h_contact": prm["h_contact"],

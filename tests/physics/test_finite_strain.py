@@ -10,7 +10,6 @@ import warnings
 from pathlib import Path
 
 from mpi4py import MPI
-from petsc4py import PETSc
 
 import numpy as np
 import pytest
@@ -21,10 +20,10 @@ from sdm_dolfinx import DirichletPart, Problem, simulate
 from sdm_dolfinx.method.errors import DiscretisationError
 from sdm_dolfinx.run.finite_strain_step import RTOL
 from sdm_dolfinx.run.options import RunInputError
+from sdm_dolfinx.validation.finite_strain import LAM, MU, OMEGA, DT, free_body, area as deformed_area
+from sdm_dolfinx.validation.finite_strain import spinning_square as validation_square
 
 COMM = MPI.COMM_WORLD
-#: the square's Lame parameters (plane strain), its angular velocity and the time step of the spin
-LAM, MU, OMEGA, DT = 2.0, 1.0, 2.0, 0.05
 
 
 def svk_psi(C):
@@ -33,27 +32,14 @@ def svk_psi(C):
     return 0.5 * LAM * ufl.tr(E) ** 2 + MU * ufl.inner(E, E)
 
 
-def body(msh, u0, v0, parts=(), psi=None, lam=LAM, mu=MU, columns=("momentum_x", "momentum_y")):
-    """A free plane-strain or 3-D body of density 1 on ``msh``: no load, no contact, Hooke's a(u, w) of
-    (lam, mu), which every material linearises to."""
-    gdim = msh.geometry.dim
-    eps = lambda u: ufl.sym(ufl.grad(u))                                                # noqa: E731
-    sigma = lambda u: lam * ufl.tr(eps(u)) * ufl.Identity(gdim) + 2 * mu * eps(u)       # noqa: E731
-    zero = fem.Constant(msh, np.zeros(gdim, dtype=PETSc.ScalarType))
-    return Problem(name="free_body", mesh=msh, shape=(gdim,), a=lambda u, w: ufl.inner(sigma(u), eps(w)) * ufl.dx,
-                   l=lambda w: ufl.inner(zero, w) * ufl.dx, u0=u0, v0=v0,
-                   constraint_vertices=lambda m: np.zeros(0, dtype=np.int32),
-                   lower_bound=lambda x: np.zeros(x.shape[1]), constraint_component=1,
-                   constraint_measure=lambda q: q * ufl.ds, dirichlet_parts=list(parts), probe=(0.5,) * gdim,
-                   extra_columns=columns, momentum_component=1, strain_energy=psi,
-                   parameters={"lame_lambda": lam, "lame_mu": mu})
+def body(msh, u0, v0, parts=(), psi=None, columns=("momentum_x", "momentum_y")):
+    """A free body of density 1 with Hooke's a(u, w) of (LAM, MU) (:func:`~sdm_dolfinx.validation.finite_strain.free_body`)."""
+    return free_body(msh, u0, v0, parts, psi, LAM, MU, columns)
 
 
-def spinning_square(psi=None, n=4):
-    """The unit square spinning about its centre at OMEGA, plus a small deformation rate, from u0 = 0."""
-    msh = dmesh.create_unit_square(COMM, n, n)
-    v0 = lambda x: np.array([-OMEGA * (x[1] - 0.5) + 0.1 * (x[0] - 0.5) ** 2, OMEGA * (x[0] - 0.5)])  # noqa: E731
-    return body(msh, lambda x: np.zeros((2, x.shape[1])), v0, psi=psi)
+def spinning_square(psi=None):
+    """The unit square spinning about its centre at OMEGA plus a small deformation rate, from u0 = 0."""
+    return validation_square(psi, comm=COMM)
 
 
 def drift(column, scale):
@@ -80,13 +66,8 @@ def test_spinning_square_conserves_energy_and_momenta(material):
 
 
 def area(result):
-    """The area of the deformed body, int det(I + grad u) dx, at the run's final state."""
-    d = result.discretisation
-    u = fem.Function(d.W)
-    u.x.array[:len(result.U.array)] = result.U.array
-    u.x.scatter_forward()
-    form = fem.form(ufl.det(ufl.Identity(2) + ufl.grad(u)) * ufl.dx)
-    return COMM.allreduce(fem.assemble_scalar(form), op=MPI.SUM)
+    """The area of the deformed body at the run's final state."""
+    return deformed_area(result.discretisation, result.U.array)
 
 
 def test_linear_model_spins_into_a_swollen_body():
@@ -296,6 +277,19 @@ def test_problem_psi_runs_like_the_builtin_law():
     assert np.max(np.abs(own["u_probe"] - svk["u_probe"])) < 1e-8
 
 
+@pytest.mark.parametrize("material", ["linear", "svk"])
+def test_an_unused_strain_energy_is_warned(material):
+    """A problem that declares strain_energy run with another material: one line (rank 0) says its psi is not
+    used; material problem runs it without the warning."""
+    for m, expected in ((material, True), ("problem", False)):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            simulate(spinning_square(svk_psi), pair="P2/P1", material=m, dt=DT, T=DT)
+        said = [str(w.message) for w in caught if "declares strain_energy" in str(w.message)]
+        assert len(said) == (1 if expected and COMM.rank == 0 else 0), said
+        assert all("\n" not in w and f"material {m!r}" in w for w in said)
+
+
 def test_refusals_are_one_line():
     """What the hyperelastic step cannot run is refused before anything is built or written."""
     wrong = lambda C: 2.0 * svk_psi(C)                                                  # noqa: E731
@@ -314,15 +308,18 @@ def test_refusals_are_one_line():
 
 # ------------------------------------------------------------------ run folder: restart, energy, picture
 @pytest.mark.filterwarnings("ignore::UserWarning")          # the P2 face's sink between vertices (measured)
-def test_restart_and_recomputed_energy(mpi_tmp_path):
-    """A neo-Hookean disc through its impact (level 1, 60 steps), stopped at step 17 and restarted from its
-    checkpoint: the same time series as the uninterrupted run (bit for bit on one rank; 1e-9 on two, whose
-    MUMPS factorisations are not bit-reproducible); its energy column recomputed from state.h5 by the
-    energy command's code (psi of the material, not 1/2 a(u, u)) within 1e-10."""
+@pytest.mark.parametrize("friction", [{}, {"friction": "coulomb", "friction_options": {"mu": 0.3}}],
+                         ids=["frictionless", "coulomb"])
+def test_restart_and_recomputed_energy(mpi_tmp_path, friction):
+    """A neo-Hookean disc through its impact (level 1, 60 steps; with Coulomb friction falling obliquely),
+    stopped at step 17 and restarted from its checkpoint: the same time series as the uninterrupted run (bit
+    for bit on one rank; 1e-9 on two, whose MUMPS factorisations are not bit-reproducible); its energy column
+    recomputed from state.h5 by the energy command's code (psi of the material, not 1/2 a(u, u)) within
+    1e-10."""
     import json
     from sdm_dolfinx.post.energy import recompute_energy
-    kw = dict(pair="P2/P1", material="neo-hookean", dt=5e-4, T=0.03, write_every=2)
-    params = {"level": 1}
+    kw = dict(pair="P2/P1", material="neo-hookean", dt=5e-4, T=0.03, write_every=2, **friction)
+    params = {"level": 1, **({"vx0": 2000.0} if friction else {})}
     simulate("disc", params, out=mpi_tmp_path / "ref", **kw)
     with pytest.raises(Exception) as e:
         simulate("disc", params, out=mpi_tmp_path / "cut", checkpoint_every=5, on_step=lambda n, row: n == 17, **kw)
