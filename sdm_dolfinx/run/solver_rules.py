@@ -69,8 +69,8 @@ def finite_strain_refusal(integ, vi_solver, linear):
     where = f"material {m!r}"
     p = d.problem
     if ts.finite_strain is None:
-        return (f"{where} takes the midpoint scheme (energy-momentum) or backward-euler; scheme {integ.scheme!r} "
-                f"has no finite-strain step yet")
+        return (f"{where} takes the midpoint scheme (energy-momentum), or backward-euler, newmark or hht for "
+                f"comparison; scheme {integ.scheme!r} has no finite-strain step yet")
     not_yet = [(integ.contact != "exact", f"contact {integ.contact!r}"),
                (integ.block, "mass 'consistent' (the (U, V) block system)"),
                (vi_solver != "ssn", f"vi_solver {vi_solver!r}"),

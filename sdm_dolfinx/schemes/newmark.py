@@ -37,7 +37,10 @@ leaves one open:
   node, impact speed 1/2); neither carries kinetic energy or enters the dynamics (M V only). The
   singular dynamic method's M has no zero row: its kernel keeps the kinematic velocity, as the
   midpoint scheme does;
-* a contact treatment (penalty, Nitsche) enters as lam^{n+1} = its force at U^{n+1}.
+* a contact treatment (penalty, Nitsche) enters as lam^{n+1} = its force at U^{n+1};
+* a hyperelastic material (``finite_strain = "endpoint"``): A U is the internal force F_int(U) of the
+  stress P(F(U)) at the step's end (for HHT also at U^n), for comparison with the energy-momentum
+  midpoint scheme: Newmark's energy is not conserved then, even without contact.
 
 With gamma = 1/2 and beta = 1/4, (U^{n+1} - U^n)/dt = (V^n + V^{n+1})/2 and M (V^{n+1} - V^n) =
 dt (M a^n + M a^{n+1})/2: without contact the energy J = 1/2 V.M V + 1/2 U.A U - U.L is
@@ -65,6 +68,7 @@ class Newmark(Scheme):
     stateful = True
     beta, gamma, hht = 0.25, 0.5, 0.0
     factor = 2.0                    # c_M = (factor/dt)^2 = 1/(beta dt^2)
+    finite_strain = "endpoint"      # a hyperelastic material: A U becomes F_int(U), the stress P(F(U))
 
     def refuse(self, integ):
         return self.needs_m_formulation(integ)
@@ -77,7 +81,7 @@ class Newmark(Scheme):
         """The state {"a": a^0, "Ut": work vector}: M a^0 = L(t) - A U + (the treatment's force)."""
         d = integ.discretisation
         F = d.A.createVecLeft()
-        d.A.mult(U, F)
+        self._internal(integ, U, F)
         F.scale(-1.0)
         F.axpy(1.0, integ.load(t) if integ.time_dependent else d.L)
         if integ.treatment is not None:
@@ -94,6 +98,14 @@ class Newmark(Scheme):
         self.massless = step_mass.massless_dofs(d.M)
         return {"a": a, "Ut": a.duplicate(), "AU": a.duplicate()}
 
+    @staticmethod
+    def _internal(integ, U, out):
+        """out <- the internal force at U: A U, or a hyperelastic run's F_int(U) (the step solver's forms)."""
+        if integ.finite_strain:
+            integ.solver.forms.force(U, U, out)
+        else:
+            integ.discretisation.A.mult(U, out)
+
     def rhs(self, integ, U, V, L, t):
         """b = L + M Utilde / (beta dt^2) + alpha A U^n (alpha = 0: Newmark), lifted."""
         s, dt, b = integ.state, integ.dt, integ.b
@@ -105,7 +117,7 @@ class Newmark(Scheme):
         b.scale(1.0 / (self.beta * dt * dt))
         b.axpy(1.0, L)
         if self.hht:
-            integ.discretisation.A.mult(U, s["AU"])
+            self._internal(integ, U, s["AU"])
             b.axpy(self.hht, s["AU"])
         return integ.lifted(b)
 

@@ -21,11 +21,12 @@ PNGS = ["fig01_membrane_3d.png", "fig02_P1plus-P0_mp.png", "fig03_P1-P0_mp.png",
         "fig13_disc_mesh.png", "fig14_disc_P2-P2.png", "fig15_disc_P2-P1.png", "fig16_disc_convergence.png",
         "disc_deformed_3d.png", "friction_incline.png", "friction_block.png", "friction_impact_stress_A.png",
         "friction_impact_zones.png", "ball_deformed_3d.png", "hertz/hertz_force.png", "hertz/hertz_pressure.png",
-        "rod_contact/rod_contact.png", "two_balls/two_balls_hertz.png"]
+        "rod_contact/rod_contact.png", "two_balls/two_balls_hertz.png", "finite_strain/spin.png",
+        "finite_strain/rolling.png", "finite_strain/ball_speed.png"]
 KEYS = ["fig01", "fig02", "fig03", "fig04", "fig05", "fig06", "fig07", "fig08", "fig09", "fig10", "fig11",
         "fig13", "fig14", "fig15", "fig16", "table2", "disc3d", "friction_incline", "friction_block",
         "friction_impact_stress", "friction_impact_zones", "compare-rod1d", "rod_contact", "hertz", "ball3d",
-        "two_balls"]
+        "two_balls", "finite_strain_spin", "finite_strain_rolling", "finite_strain_ball"]
 
 
 def _is_real_plot(path):
@@ -75,6 +76,11 @@ def test_quick_study_end_to_end(tmp_path, capsys):
     assert "3-D: two balls against Hertz" in page
     for r in numbers["figures"]["two_balls"]["rows"]:
         assert abs(r["err_F_max"]) < 0.05 and abs(r["err_impulse"]) < 0.01 and r["momentum_drift"] < 1e-10, r["case"]
+    # finite strain: the spin conserves to the Newton tolerance's scale, the disc rolls a revolution in stick
+    assert "Finite strain (not in the paper)" in page
+    assert numbers["figures"]["finite_strain_spin"]["neo-hookean"]["energy_drift"] < 1e-7
+    rolled = numbers["figures"]["finite_strain_rolling"]["rows"][0]
+    assert abs(rolled["advance_per_revolution"] - 1) < 0.01 and rolled["moved_unslipping"] == 0
     # a second call recomputes nothing
     assert cli.main(["figures", "--quick", "--out", str(out), "--runs", str(runs)]) == 0
     second = capsys.readouterr().out
