@@ -35,6 +35,7 @@ from sdm_dolfinx.contact.context import StepContext
 from sdm_dolfinx.run import prescribed as _prescribed, solver_rules
 from sdm_dolfinx.run.finite_strain_step import FiniteStrainStep
 from sdm_dolfinx.run.finite_strain_friction import FrictionalFiniteStrainStep
+from sdm_dolfinx.run.finite_strain_rows import GapFiniteStrainStep
 from sdm_dolfinx.run.measures import Measures
 from sdm_dolfinx import materials, schemes
 from sdm_dolfinx.errors import StepError
@@ -154,7 +155,10 @@ class Integrator(Measures):
         self.row_options: dict = {}
         gap_rows = (d.obstacle_rows is not None or d.weighted_rows is not None
                     or d.body_rows is not None) and self.friction is None
-        if gap_rows and self.contact == "exact":            # G x >= g (method/gap_solver.py)
+        if gap_rows and self.contact == "exact" and self.finite_strain:     # a gap-row solver per tangent
+            self.solver = GapFiniteStrainStep(self, self.finite_strain, self.newton, linear, options)
+            self.apply_step = self.solver.residual
+        elif gap_rows and self.contact == "exact":            # G x >= g (method/gap_solver.py)
             self.solver, self.linear_strategy, self.linear_reason = gap_solver(
                 d, self.K, vi_solver, not self.block, options, self.factor_matrix)
         elif self.contact != "exact":
