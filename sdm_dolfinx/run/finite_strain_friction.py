@@ -9,8 +9,10 @@ K_k = c_M M + c_A T(X_k):  K_k X = K_k X_k - r(X_k) + lam,  solved by the fricti
 Newton (:class:`~sdm_dolfinx.solvers.friction_newton.FrictionalNewton`, 3-D
 :class:`~sdm_dolfinx.solvers.friction_cone.FrictionalNewtonCone`), one per tangent, started from the
 previous iteration's contact, stick and slip sets. The step ends when r(X) differs from the last
-iteration's multipliers by less than the tolerance (:data:`~.finite_strain_step.RTOL` of the step's
-scale) at every dof: the linearisation's error, quadratic in the step.
+iteration's reaction K_k X - rhs (its multipliers at the contact dofs) by less than the tolerance
+(:data:`~.finite_strain_step.RTOL` of the step's scale) at every dof: the linearisation's error, quadratic
+in the step. Against obstacles the conditions are in each node's frame (normal, tangents) of the obstacle
+at U^n, given before every step, as in the linear runs.
 
 Why the energy balance of the linear runs carries over: the energy-momentum stress makes the step's
 internal work exactly the strain energy's change (:mod:`sdm_dolfinx.materials.algorithmic`), so
@@ -28,34 +30,65 @@ from sdm_dolfinx.run.finite_strain_step import FiniteStrainStep
 
 class FrictionalFiniteStrainStep(FiniteStrainStep):
     """The step solver of a hyperelastic run of ``integ`` with friction; ``factory(K, spd, factor_matrix,
-    prefix)`` makes the frictional solver of one step matrix (:func:`sdm_dolfinx.contact.friction.solver_factory`)."""
+    prefix)`` makes the frictional solver of one step matrix (:func:`sdm_dolfinx.contact.friction.solver_factory`).
+    Against obstacles (or with the weighted gap) the contact "dofs" are the nodes' frame components (or the
+    rows' values), given before every step by :meth:`set_rows`, as in the linear runs."""
 
     def __init__(self, integ, material, newton, linear, options, factory):
         super().__init__(integ, material, newton, linear, options)
         self.factory = factory
-        self.ndofs, self.tdofs = np.asarray(self.discretisation.cdofs), np.asarray(integ.tdofs)
-        m = len(self.ndofs)
-        self.lam_t = np.zeros(self.tdofs.shape)
+        self.tdofs = np.asarray(integ.tdofs)
+        m = len(self.tdofs)
+        self.lam, self.lam_t = np.zeros(m), np.zeros(self.tdofs.shape)
         self.stick, self.slip = np.zeros(m, dtype=bool), np.zeros(m, dtype=bool)
         # the last Newton iteration's sets and multipliers (the next iteration, and the next step, start there)
         self._sets, self._lin = None, (np.zeros(m), np.zeros(self.tdofs.shape))
-        self.xref = None
+        self.xref, self.rows, self.last = None, None, None
         self.counts = {}
 
     def _make(self, K, spd, factor_matrix, prefix):
-        return self.factory(K, spd, factor_matrix, prefix)
+        solver = self.factory(K, spd, factor_matrix, prefix)
+        if self.rows is not None:
+            solver.set_rows(*self.rows)
+        return solver
+
+    def set_rows(self, normals, lb):
+        """The next step's frames and bounds (obstacles) or rows (see
+        :meth:`~sdm_dolfinx.solvers.friction_frames.NodeFrames.set_rows`); the run's solver at rest is made
+        now if none is, so that the tangential components are read in these frames."""
+        self.rows = (normals, lb)
+        if self.lcp is None and self.lcp0 is None:
+            self._initial()
+        for s in (self.lcp, self.lcp0):
+            if s is not None:
+                s.set_rows(normals, lb)
+
+    def _frames(self):
+        """A frictional solver with the step's frames (the last iteration's, or any), or None."""
+        return self.last or self.lcp or self.lcp0
 
     def tangential(self, u):
-        """The tangential components of the owned array ``u`` at the contact vertices (the order of the
-        frictional solvers' ``tdofs``; a copy)."""
-        return np.array(np.asarray(u)[self.tdofs], dtype=float)
+        """The tangential components of the owned array ``u`` at the contact nodes (the order of ``tdofs``;
+        in the step's frames against obstacles; a copy)."""
+        solver = self._frames()
+        return solver.tangential(u) if solver is not None else np.array(np.asarray(u)[self.tdofs], dtype=float)
 
     def cartesian(self, tangential):
-        """The tangential vectors as the frictional solvers give them (the axes are Cartesian here)."""
-        return np.asarray(tangential, dtype=float)
+        """The tangential vectors as Cartesian ones (3-D frames), else themselves."""
+        solver = self._frames()
+        return solver.cartesian(tangential) if solver is not None else np.asarray(tangential, dtype=float)
+
+    def frame_tangential(self, vectors):
+        """The tangential components of Cartesian vectors at the nodes, in the step's frames (obstacles)."""
+        return self._frames().frame_tangential(vectors)
+
+    def imposed_gap(self, x):
+        """min over the rows (obstacles, the weighted gap) of the imposed gap, by the last iteration's solver."""
+        solver = self._frames()
+        return solver.imposed_gap(x) if solver is not None else float("inf")
 
     def solve(self, b, X, xref_t):
-        """As :meth:`FiniteStrainStep.solve`; ``xref_t``: U^n at the tangential dofs (the slip's reference)."""
+        """As :meth:`FiniteStrainStep.solve`; ``xref_t``: the slip's reference (U^n's tangential components)."""
         self.xref = np.asarray(xref_t, dtype=float)
         return super().solve(b, X)
 
@@ -65,24 +98,19 @@ class FrictionalFiniteStrainStep(FiniteStrainStep):
             lcp._sets = tuple(np.array(v, copy=True) for v in self._sets)
         lcp.lam, lcp.lam_t = (np.array(v, copy=True) for v in self._lin)
         info = lcp.solve(rhs, X, self.xref)
-        self._sets, self._lin = lcp._sets, (lcp.lam.copy(), lcp.lam_t.copy())
+        self._sets, self._lin, self.last = lcp._sets, (lcp.lam.copy(), lcp.lam_t.copy()), lcp
         self.active, self.stick, self.slip = lcp.active.copy(), lcp.stick.copy(), lcp.slip.copy()
         self.counts = {k: info[k] for k in ("n_stick", "n_slip")}
+        self._reaction(lcp, rhs, X)
         return info["its"]
 
     def _error(self, res, scale):
-        """max |r(X) - lam| over ``scale``, lam the last iteration's multipliers at the contact dofs and 0
-        elsewhere (collective)."""
-        e = np.abs(np.where(self.free, res, 0.0))
-        lam_n, lam_t = self._lin
-        e[self.ndofs] = np.abs(res[self.ndofs] - lam_n)
-        e[self.tdofs] = np.abs(res[self.tdofs] - lam_t)
-        return self.discretisation.comm.allreduce(float(np.max(e, initial=0.0)), op=MPI.MAX) / scale
+        """max |r(X) - b - R^T lam| off the Dirichlet dofs over ``scale``, lam the last iteration's normal and
+        tangential multipliers (collective)."""
+        return self._reaction_error(res, scale)
 
     def _converged(self, res):
-        """The reactions of the converged step: r(X) - b at the contact vertices' normal dofs (active) and
-        tangential ones (sticking or slipping), 0 elsewhere."""
-        info = super()._converged(res)
-        rubs = self.stick | self.slip
-        self.lam_t = np.where(rubs.reshape((-1,) + (1,) * (self.tdofs.ndim - 1)), res[self.tdofs], 0.0)
-        return {**info, **self.counts}
+        """The last iteration's multipliers (normal and tangential, in the frames) and counts."""
+        self.lam, self.lam_t = (np.array(v, copy=True) for v in self._lin)
+        n = self.discretisation.comm.allreduce(int(np.count_nonzero(self.active)), op=MPI.SUM)
+        return {"n_active": n, **self.counts}

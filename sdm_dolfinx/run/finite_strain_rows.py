@@ -26,8 +26,6 @@ class GapFiniteStrainStep(FiniteStrainStep):
         super().__init__(integ, material, newton, linear, options)
         self.rows = None                    # (coef, g) of the step: set_rows, before every step
         self.last = None                    # the solver of the last Newton iteration
-        self.react = self.Un.duplicate()    # its reaction K X - rhs = G^T lam
-        self.react.set(0.0)
         self.active = None
 
     def _make(self, K, spd, factor_matrix, prefix):
@@ -52,21 +50,15 @@ class GapFiniteStrainStep(FiniteStrainStep):
             lcp.active = self.active.copy()
         its = lcp.solve(rhs, X)["its"]
         self.active, self.last = lcp.active.copy(), lcp
-        lcp.K.mult(X, self.react)
-        self.react.axpy(-1.0, rhs)
+        self._reaction(lcp, rhs, X)
         return its
 
     def _error(self, res, scale):
         """max |r(X) - G^T lam| off the Dirichlet dofs over ``scale``, lam the last iteration's (collective)."""
-        e = np.abs(np.where(self.free, res - self.react.array_r, 0.0))
-        return self.discretisation.comm.allreduce(float(np.max(e, initial=0.0)), op=MPI.MAX) / scale
+        return self._reaction_error(res, scale)
 
     def _converged(self, res):
         """The rows' multipliers of the last iteration, and how many are active."""
         self.lam = np.array(self.last.lam) if self.last is not None else np.zeros(0)
         n = 0 if self.active is None else int(np.count_nonzero(self.active))
         return {"n_active": self.discretisation.comm.allreduce(n, op=MPI.SUM)}
-
-    def destroy(self):
-        self.react.destroy()
-        super().destroy()

@@ -137,6 +137,21 @@ class FiniteStrainStep:
         self.active = lcp.active.copy()
         return its
 
+    def _reaction(self, lcp, rhs, X):
+        """The last iteration's reaction K X - rhs (= G^T lam, its multipliers on the owned dofs) into
+        ``self.react``: the residual r(X) - b's next value to first order (collective)."""
+        if getattr(self, "react", None) is None:
+            self.react = self.Un.duplicate()
+        lcp.K.mult(X, self.react)
+        self.react.axpy(-1.0, rhs)
+
+    def _reaction_error(self, res, scale):
+        """max |r(X) - b - (the last reaction)| off the Dirichlet dofs over ``scale`` (0 reaction before the first
+        iteration; collective)."""
+        react = getattr(self, "react", None)
+        e = np.abs(np.where(self.free, res - (react.array_r if react is not None else 0.0), 0.0))
+        return self.discretisation.comm.allreduce(float(np.max(e, initial=0.0)), op=MPI.MAX) / scale
+
     def _augmented(self, K, T):
         """The sparser [c_A T, sqrt(c_M) B^T; sqrt(c_M) B, -D] to factorise instead of K (P2/P1: M is dense;
         in 3-D always, where it took the ball's level-1 tangent from 1.4 s to 0.37 s; in 2-D from AUG_MIN_ROWS rows),
@@ -251,5 +266,6 @@ class FiniteStrainStep:
         if self.aug is not None:
             self.aug.destroy()
         self.forms.destroy()
-        for v in (self.Un, self.F, self.r, self.MX):
-            v.destroy()
+        for v in (self.Un, self.F, self.r, self.MX, getattr(self, "react", None)):
+            if v is not None:
+                v.destroy()

@@ -76,8 +76,6 @@ def finite_strain_refusal(integ, vi_solver, linear):
                (vi_solver != "ssn", f"vi_solver {vi_solver!r}"),
                (linear not in ("auto", *STRATEGIES), f"linear {linear!r} (use {', '.join(STRATEGIES)})"),
                (bool(p.contact_pairs), "contact pairs (the rows between bodies)"),
-               (integ.friction is not None and (p.obstacles or d.weighted_rows is not None),
-                f"friction {integ.friction and integ.friction.law} against obstacles or with constrain 'weighted'"),
                (bool(p.bodies), "a mesh of several bodies (the per-body columns)"),
                (isinstance(p.u0, str) and p.u0 == EQUILIBRIUM, "the equilibrium start (a linear static solve)")]
     for refused, what in not_yet:

@@ -98,7 +98,7 @@ def _elastic_body(msh, grav, bottom, contact, columns, E=E, nu=NU, rho=RHO):
                    a=lambda u, w: ufl.inner(sigma(u), eps(w)) * ufl.dx, l=lambda w: rho * ufl.inner(gc, w) * ufl.dx,
                    u0=zero, v0=zero, constraint_vertices=lambda m: dmesh.locate_entities_boundary(m, 0, bottom),
                    constraint_component=dim - 1, constraint_measure=lambda q: q * ds_c, stress=sigma,
-                   extra_columns=columns, **contact)
+                   extra_columns=columns, parameters={"lame_lambda": lmbda, "lame_mu": mu}, **contact)
 
 
 def _block_on_slope(theta, rotated, n=8):
