@@ -151,3 +151,24 @@ def test_a_hyperelastic_disc_slides_in_a_bowl_with_the_pendulum_period():
     T0 = spec.problem(COMM, h=2.0).parameters["period"]
     nh, lin = _half_period("neo-hookean", spec, T0), _half_period("linear", spec, T0)
     assert nh == pytest.approx(1.0, abs=0.02) and nh == pytest.approx(lin, rel=0.005)
+
+
+def test_3d_friction_on_a_tilted_obstacle_is_friction_under_tilted_gravity():
+    """The 3-D check (the friction cone in each node's frame): a neo-Hookean box (P1+/P0) on a plane tilted by 20
+    degrees about the horizontal diagonal, Coulomb mu = 0.8 (12 vertices stick, 4 slip at the end), against the
+    axis-aligned box under gravity R^T g: the same sets, the columns within 1e-7 of their scale and the friction
+    force rotated by R within 1e-7 (measured 4e-9 and 8e-11; the Newton tolerance, as above)."""
+    from test_obstacle_contact import _scale_diff
+    from test_obstacle_friction import _box_on_slope
+    kw = dict(pair="P1+/P0", dt=2e-5, T=2e-3, friction="coulomb", friction_options={"mu": 0.8}, material="neo-hookean")
+    p0, R = _box_on_slope(20.0, False)
+    p1, _ = _box_on_slope(20.0, True)
+    s0, s1 = simulate(p0, **kw).timeseries, simulate(p1, **kw).timeseries
+    assert s0["n_stick"][-1] > 0 and s0["n_slip"][-1] > 0
+    for c in ("n_active", "n_stick", "n_slip"):
+        assert np.array_equal(s0[c], s1[c]), c
+    for c in ("energy", "kinetic", "contact_force", "dissipated"):
+        assert _scale_diff(s0[c], s1[c]) <= 1e-7, c
+    f0 = np.vstack([s0["tangential_force_x"], s0["tangential_force_y"], np.zeros(len(s0["t"]))])
+    f1 = np.vstack([s1["tangential_force_x"], s1["tangential_force_y"], s1["tangential_force_z"]])
+    assert np.max(np.abs(R @ f0 - f1)) <= 1e-7 * np.max(np.abs(f0))
