@@ -1,4 +1,5 @@
-"""The step of a hyperelastic run with friction (Tresca or Coulomb) at the constrained vertices.
+"""The step of a hyperelastic run with friction (Tresca or Coulomb): at the constrained vertices, against
+obstacles, with the weighted gap.
 
 The step is the frictionless one of :mod:`.finite_strain_step` with the frictional conditions of
 :mod:`sdm_dolfinx.contact.friction` at the contact vertices: with r(X) the step's residual
@@ -17,9 +18,10 @@ at U^n, given before every step, as in the linear runs.
 Why the energy balance of the linear runs carries over: the energy-momentum stress makes the step's
 internal work exactly the strain energy's change (:mod:`sdm_dolfinx.materials.algorithmic`), so
 E^{n+1} - E^n = lam . (U^{n+1} - U^n) as in the linear midpoint scheme, and its tangential part is
-2 sum lam_T . d = -2 sum g |d| <= 0 (a sticking vertex, d = 0, does no work). The obstacle is the
-plane of the constrained component (x_c >= lb): its normal and tangents are the coordinate axes in
-the current configuration too, so the contact conditions are exact at any displacement.
+2 sum lam_T . d = -2 sum g |d| <= 0 (a sticking vertex, d = 0, does no work). The flat foundation
+(x_c >= lb) has the coordinate axes as its normal and tangents in the current configuration too, so its
+conditions are exact at any displacement; a curved obstacle's frames are those at U^n, first order in the
+step's motion.
 """
 from mpi4py import MPI
 
