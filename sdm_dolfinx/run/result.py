@@ -77,9 +77,10 @@ def dirichlet_columns(problem: Problem) -> tuple[str, ...]:
 
 #: the columns of a hyperelastic run (run option ``material``, docs/finite_strain.md): the step's Newton
 #: iterations on its nonlinear VI and the tangents factorised in it (``newton_its`` counts the semi-smooth
-#: Newton's active-set iterations over all of them), and the angular momentum sum_ab M_ab x_a x Vbar_b
-#: about the origin (x = X + U; 3-D: one column per axis)
-FINITE_STRAIN_COLUMNS = ("nonlinear_its", "tangents")
+#: Newton's active-set iterations over all of them), the Newton steps halved (``backtracks``) and the
+#: iterations redone with the step matrix at rest when a tangent's LCP cycled (``fallbacks``), and the
+#: angular momentum sum_ab M_ab x_a x Vbar_b about the origin (x = X + U; 3-D: one column per axis)
+FINITE_STRAIN_COLUMNS = ("nonlinear_its", "tangents", "backtracks", "fallbacks")
 
 
 def finite_strain_columns(gdim: int) -> tuple[str, ...]:
@@ -233,7 +234,8 @@ class TimeSeries:
 
     def _finite_strain_row(self, row: Row, U: PETSc.Vec, V: PETSc.Vec, step: Mapping[str, Any]) -> None:
         """The :func:`finite_strain_columns` of a row (the iteration counts 0 in row 0)."""
-        row.update(nonlinear_its=step.get("nonlinear_its", 0), tangents=step.get("tangents", 0))
+        row.update(nonlinear_its=step.get("nonlinear_its", 0), tangents=step.get("tangents", 0),
+                   backtracks=step.get("cuts", 0), fallbacks=step.get("fallbacks", 0))
         angular = self.formulation.angular_momentum(U, V)
         if isinstance(angular, float):
             row["angular_momentum"] = angular

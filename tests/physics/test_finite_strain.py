@@ -326,6 +326,19 @@ def test_refusals_are_one_line():
         assert words in str(e.value) and "\n" not in str(e.value), str(e.value)
 
 
+@pytest.mark.filterwarnings("ignore::UserWarning")          # the P2 face's sink between vertices (measured)
+def test_hard_steps_are_counted_in_the_time_series():
+    """The disc (level 1, neo-Hookean) hitting the foundation at dt = 1e-3: its impact steps need the Newton
+    steps halved (measured 4 halvings; without them this run diverged: finite_strain_step.ACCEPT), which the
+    column ``backtracks`` shows; no iteration fell back to the step matrix at rest (``fallbacks`` 0); at
+    dt = 5e-4 no step needs either."""
+    hard = simulate("disc", {"level": 1}, material="neo-hookean", dt=1e-3, T=0.03).timeseries
+    easy = simulate("disc", {"level": 1}, material="neo-hookean", dt=5e-4, T=0.03).timeseries
+    assert hard["backtracks"].sum() >= 1 and hard["backtracks"][0] == 0
+    assert easy["backtracks"].sum() == 0 and hard["fallbacks"].sum() == easy["fallbacks"].sum() == 0
+    assert hard["n_active"].max() >= 1
+
+
 # ------------------------------------------------------------------ run folder: restart, energy, picture
 @pytest.mark.filterwarnings("ignore::UserWarning")          # the P2 face's sink between vertices (measured)
 @pytest.mark.parametrize("friction", [{}, {"friction": "coulomb", "friction_options": {"mu": 0.3}}],
