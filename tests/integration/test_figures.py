@@ -26,7 +26,8 @@ PNGS = ["fig01_membrane_3d.png", "fig02_P1plus-P0_mp.png", "fig03_P1-P0_mp.png",
 KEYS = ["fig01", "fig02", "fig03", "fig04", "fig05", "fig06", "fig07", "fig08", "fig09", "fig10", "fig11",
         "fig13", "fig14", "fig15", "fig16", "table2", "disc3d", "friction_incline", "friction_block",
         "friction_impact_stress", "friction_impact_zones", "compare-rod1d", "rod_contact", "hertz", "ball3d",
-        "two_balls", "finite_strain_spin", "finite_strain_rolling", "finite_strain_ball"]
+        "two_balls", "finite_strain_spin", "finite_strain_patch", "finite_strain_rolling",
+        "finite_strain_ball"]
 
 
 def _is_real_plot(path):
