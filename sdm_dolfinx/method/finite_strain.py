@@ -54,11 +54,15 @@ class FiniteStrain:
         W = d.W
         self.x, self.u_n, self.u = fem.Function(W), fem.Function(W), fem.Function(W)
         w, du = ufl.TestFunction(W), ufl.TrialFunction(W)
-        f_int = algorithmic.internal_force(m, kind, self.x, self.u_n, w, p)
+        try:        # a problem's own psi that fails or is not a scalar: the input refused, as a refusal is
+            f_int = algorithmic.internal_force(m, kind, self.x, self.u_n, w, p)
+            energy = algorithmic.energy_density(m, self.u, p)
+        except materials.MaterialError as e:
+            raise DiscretisationError(str(e)) from None
         self.degree = q = degree(d)
         self._force_form = compat.form(f_int, quadrature_degree=q)
         self._tangent_form = compat.form(ufl.derivative(f_int, self.x, du), quadrature_degree=q)
-        self._energy_form = compat.form(algorithmic.energy_density(m, self.u, p) * ufl.dx, quadrature_degree=q)
+        self._energy_form = compat.form(energy * ufl.dx, quadrature_degree=q)
         self._force = compat.assemble_vector(self._force_form)
         self.nW = d.A.getLocalSize()[0]
         self._check_rest()

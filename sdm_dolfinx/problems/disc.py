@@ -283,7 +283,7 @@ PARAMS = (
     Param("with_contact", True, "remove the foundation (free flight)", flag="no-contact"),
     Param("start", "unstressed", "initial state: unstressed (u0 = 0) at --height with velocity (--vx0, --v0), or "
           "resting on the foundation in static equilibrium under the normal part of gravity, velocity (--vx0, 0) "
-          "(needs --height 0 --v0 0)", type=str, choices=STARTS),
+          "(needs --height 0 --v0 0); --spin adds its rotation to either", type=str, choices=STARTS),
 )
 
 

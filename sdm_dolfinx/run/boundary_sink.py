@@ -51,12 +51,10 @@ class BoundarySink:
 
     Args:
         discretisation: the run's Discretisation (it has a constrained boundary: ``num_boundary_dofs``).
-        hyperelastic: the run has a hyperelastic material (the weighted gap is not offered: it refuses one).
     """
 
-    def __init__(self, discretisation: Discretisation, hyperelastic: bool = False) -> None:
+    def __init__(self, discretisation: Discretisation) -> None:
         self.discretisation = d = discretisation
-        self.hyperelastic = hyperelastic
         self.comm = d.comm
         lo, hi = np.empty(3), np.empty(3)
         self.comm.Allreduce(np.ascontiguousarray(d.bx.min(axis=1, initial=np.inf)), lo, op=MPI.MIN)
@@ -116,8 +114,5 @@ class BoundarySink:
         if getattr(self.discretisation, "obstacle_rows", None) is not None:
             return ("the obstacles hold the constrained vertices only: constrain='nodes' (--constrain nodes) holds "
                     "every node of the face")
-        if self.hyperelastic:
-            return ("the constraint holds at vertices only (eq. (13)): constrain='nodes' (--constrain nodes) holds "
-                    "every node of the face (a hyperelastic material does not take the weighted gap yet)")
         return ("the constraint holds at vertices only (eq. (13)): constrain='weighted' (--constrain weighted) holds "
                 "the face between them, constrain='nodes' (--constrain nodes) at every node")

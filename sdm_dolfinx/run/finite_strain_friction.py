@@ -47,6 +47,11 @@ class FrictionalFiniteStrainStep(FiniteStrainStep):
         self._sets, self._lin = None, (np.zeros(m), np.zeros(self.tdofs.shape))
         self.xref, self.rows, self.last = None, None, None
         self.counts = {}
+        d = self.discretisation
+        if d.obstacle_rows is not None or d.weighted_rows is not None:
+            # the slip and the fields are read in the frames or rows from the first step (a restart's too): the
+            # solver at rest is made now (one factorisation for the run, also the fallback's)
+            self._initial()
 
     def _make(self, K, spd, factor_matrix, prefix):
         solver = self.factory(K, spd, factor_matrix, prefix)
@@ -55,12 +60,9 @@ class FrictionalFiniteStrainStep(FiniteStrainStep):
         return solver
 
     def set_rows(self, normals, lb):
-        """The next step's frames and bounds (obstacles) or rows (see
-        :meth:`~sdm_dolfinx.solvers.friction_frames.NodeFrames.set_rows`); the run's solver at rest is made
-        now if none is, so that the tangential components are read in these frames."""
+        """The next step's frames and bounds (obstacles; see
+        :meth:`~sdm_dolfinx.solvers.friction_frames.NodeFrames.set_rows`), for every solver of the step."""
         self.rows = (normals, lb)
-        if self.lcp is None and self.lcp0 is None:
-            self._initial()
         for s in (self.lcp, self.lcp0):
             if s is not None:
                 s.set_rows(normals, lb)

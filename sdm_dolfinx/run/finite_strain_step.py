@@ -63,6 +63,7 @@ class FiniteStrainStep:
     """The step solver of a hyperelastic run of ``integ`` (its scheme, K's coefficients, the Dirichlet
     dofs), with the material ``material`` and ``newton`` (:data:`NEWTON`)."""
 
+
     def __init__(self, integ, material, newton, linear, options):
         d, ts = integ.discretisation, integ.time_scheme
         self.integ, self.discretisation, self.newton = integ, d, newton
@@ -79,6 +80,8 @@ class FiniteStrainStep:
         self.active = np.zeros(len(d.cdofs), dtype=bool)
         self.lam = np.zeros(len(d.cdofs))
         self._linear_its, self.prefix = 0, "sdm_fs_"
+        #: the last linear solve's reaction and the previous one (the variants with gap rows or friction)
+        self.react = self.react_old = None
 
     @property
     def total_linear_its(self):
@@ -139,16 +142,30 @@ class FiniteStrainStep:
 
     def _reaction(self, lcp, rhs, X):
         """The last iteration's reaction K X - rhs (= G^T lam, its multipliers on the owned dofs) into
-        ``self.react``: the residual r(X) - b's next value to first order (collective)."""
-        if getattr(self, "react", None) is None:
-            self.react = self.Un.duplicate()
+        ``self.react``: the residual r(X) - b's next value to first order (collective). The variants whose error
+        is measured against it (gap rows, friction) call it after every linear solve."""
+        if self.react is None:
+            self.react, self.react_old = self.Un.duplicate(), self.Un.duplicate()
+            self.react_old.set(0.0)
         lcp.K.mult(X, self.react)
         self.react.axpy(-1.0, rhs)
 
+    def _keep_reaction(self):
+        """Before a Newton iteration: the reaction that goes with its starting iterate X_old."""
+        if self.react is not None:
+            self.react.copy(self.react_old)
+
+    def _halve_reaction(self):
+        """A halved Newton step (X + X_old) / 2: its reaction estimate is the mean of the two iterates'
+        (the linearisation is affine between them), so that its error is comparable with theirs."""
+        if self.react is not None:
+            self.react.axpy(1.0, self.react_old)
+            self.react.scale(0.5)
+
     def _reaction_error(self, res, scale):
-        """max |r(X) - b - (the last reaction)| off the Dirichlet dofs over ``scale`` (0 reaction before the first
-        iteration; collective)."""
-        react = getattr(self, "react", None)
+        """max |r(X) - b - (the reaction estimate of X)| off the Dirichlet dofs over ``scale`` (0 reaction before
+        the first iteration; collective)."""
+        react = self.react
         e = np.abs(np.where(self.free, res - (react.array_r if react is not None else 0.0), 0.0))
         return self.discretisation.comm.allreduce(float(np.max(e, initial=0.0)), op=MPI.MAX) / scale
 
@@ -175,6 +192,8 @@ class FiniteStrainStep:
         its = tangents = cuts = fallbacks = 0
         rhs, X_old = b.duplicate(), X.copy()
         err = None
+        if self.react is not None:          # no reaction before the step's first iteration
+            self.react.set(0.0)
         for k in range(1, (MAX_IT if self.newton == "full" else MAX_IT_INITIAL) + 1):
             res, scale = self._residual(X, braw, bscale)
             new = self._error(res, scale)
@@ -183,6 +202,7 @@ class FiniteStrainStep:
                     break
                 X.axpy(1.0, X_old)                  # X <- (X + X_old) / 2: feasible, the data kept
                 X.scale(0.5)
+                self._halve_reaction()
                 cuts += 1
                 res, scale = self._residual(X, braw, bscale)
                 new = self._error(res, scale)
@@ -197,6 +217,7 @@ class FiniteStrainStep:
             before = err
             self._rhs(K, X, res, rhs)
             X.copy(X_old)
+            self._keep_reaction()
             try:
                 its += self._solve_linear(lcp, rhs, X)
             except VIError as e:
@@ -266,6 +287,6 @@ class FiniteStrainStep:
         if self.aug is not None:
             self.aug.destroy()
         self.forms.destroy()
-        for v in (self.Un, self.F, self.r, self.MX, getattr(self, "react", None)):
+        for v in (self.Un, self.F, self.r, self.MX, self.react, self.react_old):
             if v is not None:
                 v.destroy()

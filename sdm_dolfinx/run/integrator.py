@@ -102,10 +102,10 @@ class Integrator(Measures):
         self.parts = _prescribed.Prescribed() if discretisation.problem.dirichlet_parts else None
         refused = _friction.check_solver(self.friction and self.friction.law, vi_solver, linear)
         parts_refused = self.parts.refuse(self) if self.parts else None
-        refused = refused or [r for r in (_obstacles.refusal(self, ts, vi_solver, linear), solver_rules.contact_refusal(self),
+        refused = refused or [r for r in (solver_rules.finite_strain_refusal(self, vi_solver, linear),
+                                          _obstacles.refusal(self, ts, vi_solver, linear), solver_rules.contact_refusal(self),
                                           parts_refused, _iterative.refusal(discretisation, linear, self.block),
-                                          _mb.refusal(discretisation, ts, contact), ts.refuse(self),
-                                          solver_rules.finite_strain_refusal(self, vi_solver, linear)) if r]
+                                          _mb.refusal(discretisation, ts, contact), ts.refuse(self)) if r]
         if refused:
             raise DiscretisationError(refused[0])
         solver_rules.warn_unused_strain_energy(self)

@@ -176,7 +176,7 @@ class TimeSeries:
         self.data = {c: np.zeros(nsteps + 1) for c in self.columns}
         self.comm = problem.mesh.comm
         #: the deepest sink of the constrained boundary (:mod:`.boundary_sink`), or None without one
-        self.boundary_sink = BoundarySink(d, bool(finite)) if boundary else None
+        self.boundary_sink = BoundarySink(d) if boundary else None
         #: the largest cell rotation and strain of the run (a vector displacement in 2-D or 3-D), or None
         self.linear_range = (LinearRange(d.W) if LinearRange.applies(tuple(problem.shape), problem.mesh.geometry.dim)
                              and not finite else None)

@@ -58,6 +58,7 @@ def finite_strain_refusal(integ, vi_solver, linear):
     """The refusal of a hyperelastic material (``integ.finite_strain``) with what its step does not take yet,
     or of ``newton modified`` with the linear material (it would be ignored), or None."""
     from sdm_dolfinx.problems.base import EQUILIBRIUM
+    from sdm_dolfinx.problems.block import StaticStart
     from sdm_dolfinx.run.finite_strain_step import NEWTON, STRATEGIES
     d, ts, m = integ.discretisation, integ.time_scheme, integ.finite_strain
     if integ.newton not in NEWTON:
@@ -77,7 +78,9 @@ def finite_strain_refusal(integ, vi_solver, linear):
                (linear not in ("auto", *STRATEGIES), f"linear {linear!r} (use {', '.join(STRATEGIES)})"),
                (bool(p.contact_pairs), "contact pairs (the rows between bodies)"),
                (bool(p.bodies), "a mesh of several bodies (the per-body columns)"),
-               (isinstance(p.u0, str) and p.u0 == EQUILIBRIUM, "the equilibrium start (a linear static solve)")]
+               ((isinstance(p.u0, str) and p.u0 == EQUILIBRIUM) or isinstance(p.u0, StaticStart),
+                "the equilibrium start (the linear model's static solution, not the material's: start the problem "
+                "unstressed, with the built-in problems' --start option)")]
     for refused, what in not_yet:
         if refused:
             return f"{where} does not take {what} yet: use material linear for it"

@@ -119,6 +119,22 @@ def test_comparison_schemes_do_not_conserve_the_energy(scheme):
         assert d["energy"][-1] < E0
 
 
+@pytest.mark.parametrize("scheme", ["newmark", "hht", "backward-euler"])
+def test_comparison_schemes_have_the_linear_limit(scheme):
+    """At small amplitudes a hyperelastic run is its scheme's linear run plus O(amplitude): a square vibrating
+    from the velocity a (sin(pi x) y, cos(pi y) x), 40 steps, a = 1e-3 and 1e-4: the neo-Hookean u_probe departs
+    from the linear one's by O(a) relative (the ratio of the two departures 10 within 20 %, and below 5e-3 at
+    a = 1e-3; measured 2.2e-3). A wrong end-of-step force or HHT term would leave an O(1) difference."""
+    dev = []
+    for a in (1e-3, 1e-4):
+        v0 = lambda x, a=a: a * np.array([np.sin(np.pi * x[0]) * x[1], np.cos(np.pi * x[1]) * x[0]])  # noqa: E731
+        runs = {m: simulate(body(dmesh.create_unit_square(COMM, 4, 4), lambda x: np.zeros((2, x.shape[1])), v0),
+                            pair="P2/P1", material=m, scheme=scheme, dt=0.05, T=2.0).timeseries["u_probe"]
+                for m in ("linear", "neo-hookean")}
+        dev.append(np.max(np.abs(runs["neo-hookean"] - runs["linear"])) / np.max(np.abs(runs["linear"])))
+    assert dev[0] < 5e-3 and dev[0] / dev[1] == pytest.approx(10.0, rel=0.2), dev
+
+
 def test_modified_newton_reaches_the_same_steps():
     """newton modified (the step's first tangent) converges to newton full's steps on the spin, to the
     Newton tolerance, with one tangent per step and more iterations."""
@@ -291,7 +307,14 @@ def test_refusals_are_one_line():
               "central-difference"),
              (dict(problem=spinning_square(), newton="modified"), RunInputError, "newton"),
              (dict(problem=spinning_square(), material="svk", linear="cg-gamg"), DiscretisationError, "cg-gamg"),
-             (dict(problem=spinning_square(), material="rubber"), RunInputError, "rubber")]
+             (dict(problem=spinning_square(), material="rubber"), RunInputError, "rubber"),
+             (dict(problem=spinning_square(lambda C: C), material="problem"), DiscretisationError,
+              "must return a scalar"),
+             (dict(problem=spinning_square(lambda C: 1 / 0), material="problem"), DiscretisationError,
+              "strain_energy(C) failed"),
+             (dict(problem="disc", params={"level": 1, "start": "equilibrium", "height": 0.0, "v0": 0.0},
+                   material="neo-hookean", dt=1e-4, T=1e-4), DiscretisationError, "--start option"),
+             (dict(problem="block", material="svk", dt=1e-4, T=1e-4), DiscretisationError, "equilibrium start")]
     for kw, error, words in cases:
         with pytest.raises(error) as e:
             simulate(**{"pair": "P2/P1", "dt": DT, "T": DT, **kw})
@@ -309,6 +332,20 @@ def test_hard_steps_are_counted_in_the_time_series():
     assert hard["backtracks"].sum() >= 1 and hard["backtracks"][0] == 0
     assert easy["backtracks"].sum() == 0 and hard["fallbacks"].sum() == easy["fallbacks"].sum() == 0
     assert hard["n_active"].max() >= 1
+
+
+@pytest.mark.filterwarnings("ignore::UserWarning")
+@pytest.mark.parametrize("friction", [{"constrain": "weighted"}, {"friction": "tresca",
+                                                                  "friction_options": {"tresca_threshold": 1e-6}}],
+                         ids=["weighted", "tresca"])
+def test_hard_steps_backtrack_with_the_reaction_error(friction):
+    """The same hard impact (dt = 1e-3) with gap rows or friction, whose error is measured against the last
+    linear solve's reaction: a halved step's reaction is the mean of its two ends', so a halving can lower the
+    error, and no step spends every halving (MAX_CUTS). Measured: 0 and 3 halvings in the run (with the last
+    reaction kept for the halved iterate, every hard step spent all 10, and Tresca then failed at step 14)."""
+    from sdm_dolfinx.run.finite_strain_step import MAX_CUTS
+    ts = simulate("disc", {"level": 1}, material="neo-hookean", dt=1e-3, T=0.03, **friction).timeseries
+    assert ts["n_active"].max() >= 1 and ts["backtracks"].max() < MAX_CUTS
 
 
 # ------------------------------------------------------------------ run folder: restart, energy, picture
@@ -338,6 +375,31 @@ def test_restart_and_recomputed_energy(mpi_tmp_path, friction):
         assert json.loads((mpi_tmp_path / "cut" / "run.json").read_text())["material"] == "neo-hookean"
     out = recompute_energy(mpi_tmp_path / "ref", COMM, write=False)
     assert out["max_rel_diff"] < 1e-10
+
+
+@pytest.mark.filterwarnings("ignore::UserWarning")
+def test_restart_with_friction_on_the_weighted_gap(mpi_tmp_path):
+    """The pushed block (ramp 3e-3 s) on the weighted gap with Coulomb friction (mu = 0.2), neo-Hookean, stopped
+    at step 12 and restarted: the same physics to 1e-9 of each column's scale (measured 1e-12; the slip is read
+    in the gap's rows from the restart's first step). The warm-start sets of the Newton iterations are not in the
+    checkpoint, so the iteration counts may differ (measured: newton_its by a third)."""
+    kw = dict(material="neo-hookean", constrain="weighted", friction="coulomb", friction_options={"mu": 0.2},
+              dt=1e-4, T=3e-3)
+    params = {"nu": NU_B, "depth": 1.0, "ramp": 3e-3}
+    simulate(str(PUSHED), params, out=mpi_tmp_path / "ref", **kw)
+    with pytest.raises(Exception) as e:
+        simulate(str(PUSHED), params, out=mpi_tmp_path / "cut", checkpoint_every=5,
+                 on_step=lambda n, row: n == 12, **kw)
+    assert type(e.value).__name__ == "Interrupted"
+    simulate(out=mpi_tmp_path / "cut", checkpoint_every=5, restart=True)
+    if COMM.rank == 0:
+        a, b = (np.loadtxt(mpi_tmp_path / f / "timeseries.csv", delimiter=",", skiprows=1) for f in ("ref", "cut"))
+        header = (mpi_tmp_path / "ref" / "timeseries.csv").read_text().splitlines()[0].split(",")
+        counts = {"newton_its", "nonlinear_its", "tangents", "backtracks", "fallbacks"}
+        keep = [i for i, h in enumerate(header) if h not in counts]
+        scale = np.abs(a[:, keep]).max(axis=0) + 1e-300
+        assert a.shape == b.shape and np.all(np.abs(a[:, keep] - b[:, keep]).max(axis=0) <= 1e-9 * scale)
+        assert np.abs(a[:, header.index("tangential_force")]).max() > 0     # friction acts
 
 
 def test_picture_stress_is_the_cauchy_stress():
