@@ -27,14 +27,14 @@ from mpi4py import MPI
 
 import numpy as np
 
-from sdm_dolfinx.run.finite_strain_step import FiniteStrainStep
+from sdm_dolfinx.run.finite_strain_rows import RowsStep
 
 
-class FrictionalFiniteStrainStep(FiniteStrainStep):
+class FrictionalFiniteStrainStep(RowsStep):
     """The step solver of a hyperelastic run of ``integ`` with friction; ``factory(K, spd, factor_matrix,
     prefix)`` makes the frictional solver of one step matrix (:func:`sdm_dolfinx.contact.friction.solver_factory`).
     Against obstacles (or with the weighted gap) the contact "dofs" are the nodes' frame components (or the
-    rows' values), given before every step by :meth:`set_rows`, as in the linear runs."""
+    rows' values), given before every step by :meth:`~.RowsStep.set_rows`, as in the linear runs."""
 
     def __init__(self, integ, material, newton, linear, options, factory):
         super().__init__(integ, material, newton, linear, options)
@@ -45,31 +45,15 @@ class FrictionalFiniteStrainStep(FiniteStrainStep):
         self.stick, self.slip = np.zeros(m, dtype=bool), np.zeros(m, dtype=bool)
         # the last Newton iteration's sets and multipliers (the next iteration, and the next step, start there)
         self._sets, self._lin = None, (np.zeros(m), np.zeros(self.tdofs.shape))
-        self.xref, self.rows, self.last = None, None, None
-        self.counts = {}
+        self.xref, self.counts = None, {}
         d = self.discretisation
         if d.obstacle_rows is not None or d.weighted_rows is not None:
             # the slip and the fields are read in the frames or rows from the first step (a restart's too): the
             # solver at rest is made now (one factorisation for the run, also the fallback's)
             self._initial()
 
-    def _make(self, K, spd, factor_matrix, prefix):
-        solver = self.factory(K, spd, factor_matrix, prefix)
-        if self.rows is not None:
-            solver.set_rows(*self.rows)
-        return solver
-
-    def set_rows(self, normals, lb):
-        """The next step's frames and bounds (obstacles; see
-        :meth:`~sdm_dolfinx.solvers.friction_frames.NodeFrames.set_rows`), for every solver of the step."""
-        self.rows = (normals, lb)
-        for s in (self.lcp, self.lcp0):
-            if s is not None:
-                s.set_rows(normals, lb)
-
-    def _frames(self):
-        """A frictional solver with the step's frames (the last iteration's, or any), or None."""
-        return self.last or self.lcp or self.lcp0
+    def _solver(self, K, spd, factor_matrix, prefix):
+        return self.factory(K, spd, factor_matrix, prefix)
 
     def tangential(self, u):
         """The tangential components of the owned array ``u`` at the contact nodes (the order of ``tdofs``;
@@ -85,11 +69,6 @@ class FrictionalFiniteStrainStep(FiniteStrainStep):
     def frame_tangential(self, vectors):
         """The tangential components of Cartesian vectors at the nodes, in the step's frames (obstacles)."""
         return self._frames().frame_tangential(vectors)
-
-    def imposed_gap(self, x):
-        """min over the rows (obstacles, the weighted gap) of the imposed gap, by the last iteration's solver."""
-        solver = self._frames()
-        return solver.imposed_gap(x) if solver is not None else float("inf")
 
     def solve(self, b, X, xref_t):
         """As :meth:`FiniteStrainStep.solve`; ``xref_t``: the slip's reference (U^n's tangential components)."""
@@ -107,11 +86,6 @@ class FrictionalFiniteStrainStep(FiniteStrainStep):
         self.counts = {k: info[k] for k in ("n_stick", "n_slip")}
         self._reaction(lcp, rhs, X)
         return info["its"]
-
-    def _error(self, res, scale):
-        """max |r(X) - b - R^T lam| off the Dirichlet dofs over ``scale``, lam the last iteration's normal and
-        tangential multipliers (collective)."""
-        return self._reaction_error(res, scale)
 
     def _converged(self, res):
         """The last iteration's multipliers (normal and tangential, in the frames) and counts."""

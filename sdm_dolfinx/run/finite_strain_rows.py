@@ -19,31 +19,58 @@ from sdm_dolfinx.method.gap_solver import gap_solver
 from sdm_dolfinx.run.finite_strain_step import FiniteStrainStep
 
 
-class GapFiniteStrainStep(FiniteStrainStep):
-    """The step solver of a hyperelastic run of ``integ`` whose Discretisation has gap rows."""
+class RowsStep(FiniteStrainStep):
+    """What the variants whose constraints are rows given before every step (gap rows, friction) share: the
+    step's rows applied to every linear solver made (:meth:`_solver`, one per tangent), and the error measured
+    against the last linear solve's reaction (:meth:`~.FiniteStrainStep._reaction_error`)."""
 
     def __init__(self, integ, material, newton, linear, options):
         super().__init__(integ, material, newton, linear, options)
-        self.rows = None                    # (coef, g) of the step: set_rows, before every step
+        self.rows = None                    # the step's rows: set_rows, before every step
         self.last = None                    # the solver of the last Newton iteration
-        self.active = None
+
+    def _solver(self, K, spd, factor_matrix, prefix):
+        """A new linear solver of the step matrix K (the variant's)."""
+        raise NotImplementedError
 
     def _make(self, K, spd, factor_matrix, prefix):
-        solver = gap_solver(self.discretisation, K, "ssn", spd, self.options, factor_matrix)[0]
+        solver = self._solver(K, spd, factor_matrix, prefix)
         if self.rows is not None:
             solver.set_rows(*self.rows)
         return solver
 
-    def set_rows(self, coef, g):
-        """The rows of the next step (obstacles: linearised at U^n; the weighted gap's g)."""
-        self.rows = (coef, g)
+    def set_rows(self, *rows):
+        """The rows of the next step (obstacles: linearised at U^n, their frames; the weighted gap's g), for
+        every solver of the step."""
+        self.rows = rows
         for s in (self.lcp, self.lcp0):
             if s is not None:
-                s.set_rows(coef, g)
+                s.set_rows(*rows)
+
+    def _frames(self):
+        """A linear solver with the step's rows (the last iteration's, or any), or None."""
+        return self.last or self.lcp or self.lcp0
 
     def imposed_gap(self, x):
-        """min over this rank's rows of G x - g, by the last iteration's solver (collective for matrix rows)."""
-        return self.last.imposed_gap(x) if self.last is not None else float("inf")
+        """min over this rank's rows of the imposed gap, by a solver with the step's rows (collective for
+        matrix rows)."""
+        solver = self._frames()
+        return solver.imposed_gap(x) if solver is not None else float("inf")
+
+    def _error(self, res, scale):
+        """max |r(X) - b - R^T lam| off the Dirichlet dofs over ``scale``, lam the last iteration's (collective)."""
+        return self._reaction_error(res, scale)
+
+
+class GapFiniteStrainStep(RowsStep):
+    """The step solver of a hyperelastic run of ``integ`` whose Discretisation has gap rows."""
+
+    def __init__(self, integ, material, newton, linear, options):
+        super().__init__(integ, material, newton, linear, options)
+        self.active = None
+
+    def _solver(self, K, spd, factor_matrix, prefix):
+        return gap_solver(self.discretisation, K, "ssn", spd, self.options, factor_matrix)[0]
 
     def _solve_linear(self, lcp, rhs, X):
         if self.active is not None:
@@ -52,10 +79,6 @@ class GapFiniteStrainStep(FiniteStrainStep):
         self.active, self.last = lcp.active.copy(), lcp
         self._reaction(lcp, rhs, X)
         return its
-
-    def _error(self, res, scale):
-        """max |r(X) - G^T lam| off the Dirichlet dofs over ``scale``, lam the last iteration's (collective)."""
-        return self._reaction_error(res, scale)
 
     def _converged(self, res):
         """The rows' multipliers of the last iteration, and how many are active."""

@@ -63,7 +63,6 @@ class FiniteStrainStep:
     """The step solver of a hyperelastic run of ``integ`` (its scheme, K's coefficients, the Dirichlet
     dofs), with the material ``material`` and ``newton`` (:data:`NEWTON`)."""
 
-
     def __init__(self, integ, material, newton, linear, options):
         d, ts = integ.discretisation, integ.time_scheme
         self.integ, self.discretisation, self.newton = integ, d, newton
@@ -71,8 +70,6 @@ class FiniteStrainStep:
         self.forms = FiniteStrain(d, material, ts.finite_strain)
         self.c_M, self.c_A = integ.coefficients
         self.lb = ts.solver_bounds(integ)
-        #: the dofs whose residual is a contact reaction (the normal ones; with friction also the tangential)
-        self.cdofs = d.cdofs
         self.Un, self.F, self.r, self.MX = (d.A.createVecRight() for _ in range(4))
         self.free = np.ones(self.Un.getLocalSize(), dtype=bool)
         self.free[d.ddofs] = False

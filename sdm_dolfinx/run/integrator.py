@@ -157,7 +157,6 @@ class Integrator(Measures):
                     or d.body_rows is not None) and self.friction is None
         if gap_rows and self.contact == "exact" and self.finite_strain:     # a gap-row solver per tangent
             self.solver = GapFiniteStrainStep(self, self.finite_strain, self.newton, linear, options)
-            self.apply_step = self.solver.residual
         elif gap_rows and self.contact == "exact":            # G x >= g (method/gap_solver.py)
             self.solver, self.linear_strategy, self.linear_reason = gap_solver(
                 d, self.K, vi_solver, not self.block, options, self.factor_matrix)
@@ -171,19 +170,19 @@ class Integrator(Measures):
                 options = {"schur_max_active": str(SCHUR_MAX_ACTIVE_3D), **(options or {})}
             if self.finite_strain:
                 self.solver = FiniteStrainStep(self, self.finite_strain, self.newton, linear, options)
-                self.apply_step = self.solver.residual
-                return
-            self.solver = make_vi_solver(vi_solver, self.K, d.cdofs, self.time_scheme.solver_bounds(self),
-                                         symmetric_positive=not self.block, linear=linear, options=options,
-                                         factor_matrix=self.factor_matrix)
+            else:
+                self.solver = make_vi_solver(vi_solver, self.K, d.cdofs, self.time_scheme.solver_bounds(self),
+                                             symmetric_positive=not self.block, linear=linear, options=options,
+                                             factor_matrix=self.factor_matrix)
         elif self.finite_strain:            # a new frictional solver per tangent
             self.solver = FrictionalFiniteStrainStep(self, self.finite_strain, self.newton, linear, options,
                                                      _friction.solver_factory(self, options))
-            self.apply_step = self.solver.residual
         else:
             self.solver = _friction.make_solver(self, options)
             if self.friction.law == "coulomb":          # up front: a mu the measured bound does not cover
                 _friction_bound.warn_if_above(self, self.friction.mu)
+        if self.finite_strain:              # the reactions of the Dirichlet parts: K X - b with its force
+            self.apply_step = self.solver.residual
 
     def _build(self, linear):
         d, ts = self.discretisation, self.time_scheme
