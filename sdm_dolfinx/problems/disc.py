@@ -277,7 +277,7 @@ PARAMS = (
     Param("v0", -1000.0, "initial vertical velocity of the disc, negative downward", unit="mm/s"),
     Param("vx0", 0.0, "initial horizontal velocity of the disc (an oblique impact: (vx0, v0))", unit="mm/s"),
     Param("spin", 0.0, "initial angular velocity about the centre, counter-clockwise (rolling to +x without "
-          "slipping: -vx0 / radius)", unit="rad/s"),
+          "slipping: -vx0 / radius); needs --contact-zone all", unit="rad/s"),
     Param("contact_zone", "lower", "boundary vertices that may touch: the lower half circle or all", type=str,
           choices=CONTACT_ZONES),
     Param("with_contact", True, "remove the foundation (free flight)", flag="no-contact"),
@@ -303,6 +303,10 @@ def _check(values, label):
         errors.append(f"{label('start')} equilibrium rests the disc on the foundation: it needs {label('height')} 0, "
                       f"{label('v0')} 0 and the foundation (got {label('height')} {values['height']:g}, "
                       f"{label('v0')} {values['v0']:g}{'' if values['with_contact'] else ', no contact'})")
+    if values["spin"] != 0.0 and values["with_contact"] and values["contact_zone"] == "lower":
+        # a turning disc brings its upper boundary, unconstrained, down to the foundation: it would pass through
+        errors.append(f"{label('spin')} turns the disc's upper half, which {label('contact_zone')} lower leaves "
+                      f"free to pass through the foundation: give {label('contact_zone')} all")
     if not values["gravity_angle"] < 90.0:
         errors.append(f"{label('gravity_angle')} must be in [0, 90) degrees (got {values['gravity_angle']})")
     if values["lame_lambda"] + values["lame_mu"] <= 0:

@@ -45,6 +45,7 @@ BAD = [
     (["disc", "--material", "svk", "--scheme", "central-difference", "--pair", "P1/P1", "--mass", "row-sum"], None,
      "no finite-strain step"),
     (["two_balls", "--material", "svk"], None, "contact pairs (the rows between bodies) yet"),
+    (["disc", "--spin", "-50"], None, "--spin turns the disc's upper half"),
     (["membrane", "--write-every", "0"], None, "--write-every"),
     (["membrane", "--checkpoint-every", "-3"], None, "--checkpoint-every"),
     (["membrane", "--probe", "2", "0.5"], None, "--probe"),
